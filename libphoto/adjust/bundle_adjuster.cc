@@ -1,0 +1,790 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/adjust/bundle_adjuster.h"
+
+#include <ceres/ceres.h>
+#include <ceres/product_manifold.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+#include "libphoto/adjust/position_prior_cost.h"
+#include "libphoto/adjust/reprojection_cost.h"
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// Forwards Ceres iterations to the user's callback.
+class IterationForwarder final : public ceres::IterationCallback {
+ public:
+  IterationForwarder(const std::function<void(const IterationReport&)>& fn,
+                     int round)
+      : fn_(fn), round_(round) {}
+  ceres::CallbackReturnType operator()(
+      const ceres::IterationSummary& summary) override {
+    IterationReport report;
+    report.iteration = summary.iteration;
+    report.cost = summary.cost;
+    report.time_s = summary.cumulative_time_in_seconds;
+    report.round = round_;
+    fn_(report);
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const std::function<void(const IterationReport&)>& fn_;
+  int round_;
+};
+
+std::unique_ptr<ceres::LossFunction> MakeLoss(const BundleOptions& options) {
+  // Residuals are divided by sigma_px, so a scale in pixels becomes scale/sigma.
+  const double a = options.loss_scale_px / options.observation_sigma_px;
+  switch (options.loss) {
+    case LossType::kNone:
+      return nullptr;
+    case LossType::kHuber:
+      return std::make_unique<ceres::HuberLoss>(a);
+    case LossType::kCauchy:
+      return std::make_unique<ceres::CauchyLoss>(a);
+    case LossType::kTukey:
+      return std::make_unique<ceres::TukeyLoss>(a);
+  }
+  return nullptr;
+}
+
+// Indices of the intrinsic parameters to refine for one camera.
+std::vector<int> RefinedParams(const Camera& camera,
+                               const BundleOptions& options) {
+  const CameraModelInfo& info = camera.info();
+  std::vector<int> refined;
+  switch (options.refine_intrinsics) {
+    case IntrinsicsRefinement::kNone:
+      break;
+    case IntrinsicsRefinement::kFocal:
+      refined = info.focal_params;
+      break;
+    case IntrinsicsRefinement::kFocalPrincipalPoint:
+      refined = info.focal_params;
+      refined.insert(refined.end(), info.principal_point_params.begin(),
+                     info.principal_point_params.end());
+      break;
+    case IntrinsicsRefinement::kAll:
+      for (int i = 0; i < info.num_params(); ++i) refined.push_back(i);
+      break;
+    case IntrinsicsRefinement::kList:
+      for (const std::string& name : options.refine_params) {
+        const auto it = std::find(info.param_names.begin(),
+                                  info.param_names.end(), Lower(name));
+        if (it != info.param_names.end()) {
+          refined.push_back(static_cast<int>(it - info.param_names.begin()));
+        } else if (Lower(name) == "pp" || Lower(name) == "cx,cy") {
+          refined.insert(refined.end(), info.principal_point_params.begin(),
+                         info.principal_point_params.end());
+        }
+        // A name the model lacks (e.g. k3 on a pinhole) is simply not refined.
+      }
+      break;
+  }
+  std::sort(refined.begin(), refined.end());
+  refined.erase(std::unique(refined.begin(), refined.end()), refined.end());
+  return refined;
+}
+
+// True when the prior positions span a plane (not a line or a point).
+bool PriorsFixDatum(const std::vector<Eigen::Vector3d>& positions) {
+  if (positions.size() < 3) return false;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : positions) mean += p;
+  mean /= static_cast<double>(positions.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : positions) cov += (p - mean) * (p - mean).transpose();
+  cov /= static_cast<double>(positions.size());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Eigen::Vector3d ev = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  // ev ascending: ev(1) is the spread across the main direction.
+  return ev(2) > 0.0 && ev(1) > 1e-2 * ev(2);
+}
+
+struct RoundResult {
+  ceres::Solver::Summary ceres;
+  std::string gauge;
+  std::string solver;
+  int num_observations = 0;
+  int num_points = 0;
+  int num_images = 0;
+  int num_gps = 0;
+  int num_gcp = 0;
+  int skipped_points = 0;
+  double setup_s = 0.0;
+};
+
+// The datum of a model without enough priors: image A's pose and the length
+// of the baseline from A to the farthest image B, as they were before the
+// solve. Reprojection error is invariant under similarity transforms, so the
+// solve runs with the gauge free (LM damping handles the 7-dimensional null
+// space, as in Ceres' BAL example) and RestoreDatum() maps the result back
+// exactly; holding the blocks fixed instead costs Ceres its specialised
+// Schur eliminator and, on the BAL problems, about twice the iterations.
+struct Datum {
+  int a = -1;
+  int b = -1;
+  Pose pose_a;
+  double baseline = 0.0;
+};
+
+// Applies Y = s Q (X − C_A') + C_A to every adjusted centre and point so that
+// image A gets back its pose and |C_B − C_A| its length.
+void RestoreDatum(const Datum& datum, bool restore_rotation, bool restore_scale,
+                  const std::vector<char>& image_used, const std::vector<char>& point_used,
+                  SparseModel* model) {
+  if (datum.a < 0) return;
+  const Pose now = model->images[datum.a].pose;
+  const Eigen::Quaterniond q =
+      restore_rotation ? datum.pose_a.cam_from_world.conjugate() * now.cam_from_world
+                       : Eigen::Quaterniond::Identity();
+  double s = 1.0;
+  if (restore_scale && datum.b >= 0) {
+    const double len =
+        (model->images[datum.b].pose.centre_in_world - now.centre_in_world).norm();
+    if (len > 0.0) s = datum.baseline / len;
+  }
+  const Eigen::Vector3d c_new = now.centre_in_world;
+  const Eigen::Vector3d c_old = restore_rotation ? datum.pose_a.centre_in_world : c_new;
+  auto map = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d {
+    return s * (q * (x - c_new)) + c_old;
+  };
+  for (size_t i = 0; i < model->images.size(); ++i) {
+    if (!image_used[i]) continue;
+    Pose& pose = model->images[i].pose;
+    pose.centre_in_world = map(pose.centre_in_world);
+    pose.cam_from_world = (pose.cam_from_world * q.conjugate()).normalized();
+  }
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    if (point_used[p]) model->points[p].position = map(model->points[p].position);
+  }
+}
+
+RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round) {
+  const auto setup_start = Clock::now();
+  RoundResult result;
+  const auto per_point = model->ObservationsPerPoint();
+  const size_t num_images = model->images.size();
+
+  auto use_point = [&](int index) {
+    const Point& point = model->points[index];
+    if (point.role == PointRole::kCheck) return false;
+    const bool anchored =
+        point.role == PointRole::kControl && point.prior && options.use_gcp_priors;
+    return per_point[index] >= 2 || (anchored && per_point[index] >= 1);
+  };
+
+  // Which images, camera groups and points take part.
+  std::vector<char> image_used(num_images, 0);
+  std::vector<char> camera_used(model->cameras.size(), 0);
+  std::vector<char> point_used(model->points.size(), 0);
+  for (const Observation& obs : model->observations) {
+    const Image& image = model->images[obs.image];
+    if (!image.registered || !use_point(obs.point)) continue;
+    image_used[obs.image] = 1;
+    camera_used[image.camera] = 1;
+    point_used[obs.point] = 1;
+    ++result.num_observations;
+  }
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    result.num_points += point_used[p];
+    if (model->points[p].role == PointRole::kTie && per_point[p] == 1) ++result.skipped_points;
+  }
+
+  // Priors and the datum.
+  std::vector<Eigen::Vector3d> prior_positions;
+  for (size_t i = 0; i < num_images; ++i) {
+    if (options.use_gps_priors && image_used[i] && model->images[i].gps_prior) {
+      prior_positions.push_back(model->images[i].gps_prior->position);
+    }
+  }
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    const Point& point = model->points[p];
+    if (options.use_gcp_priors && point_used[p] && point.role == PointRole::kControl &&
+        point.prior) {
+      prior_positions.push_back(point.prior->position);
+    }
+  }
+  const bool datum_from_priors = PriorsFixDatum(prior_positions);
+  Datum datum;
+  bool fix_rotation_of_a = false;
+  bool restore_scale = false;
+  if (!datum_from_priors) {
+    for (size_t i = 0; i < num_images && datum.a < 0; ++i) {
+      if (image_used[i] && (prior_positions.empty() || model->images[i].gps_prior ||
+                            prior_positions.size() > 0)) {
+        datum.a = static_cast<int>(i);
+      }
+    }
+    if (datum.a >= 0) {
+      datum.pose_a = model->images[datum.a].pose;
+      for (size_t i = 0; i < num_images; ++i) {
+        if (!image_used[i] || static_cast<int>(i) == datum.a) continue;
+        const double len =
+            (model->images[i].pose.centre_in_world - datum.pose_a.centre_in_world).norm();
+        if (len > datum.baseline) {
+          datum.baseline = len;
+          datum.b = static_cast<int>(i);
+        }
+      }
+    }
+    // With some priors the pose of A cannot simply be restored afterwards (the
+    // priors are not invariant): hold A's rotation fixed instead; scale comes
+    // from the priors when they hold two distinct positions.
+    fix_rotation_of_a = !prior_positions.empty();
+    bool distinct = false;
+    for (const auto& p : prior_positions) distinct |= (p - prior_positions[0]).norm() > 1e-6;
+    restore_scale = !distinct;
+  }
+
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  // Blocks are distinct buffers by construction and the model was validated.
+  problem_options.disable_all_safety_checks = true;
+  ceres::Problem problem(problem_options);
+  std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options);
+  ceres::QuaternionManifold quaternion_manifold;
+  std::vector<std::unique_ptr<ceres::Manifold>> owned_manifolds;
+
+  // Per-camera-group refinement and the block layout of each image.
+  std::vector<std::vector<int>> refined(model->cameras.size());
+  std::vector<int> images_of_camera(model->cameras.size(), 0);
+  for (size_t c = 0; c < model->cameras.size(); ++c) {
+    refined[c] = RefinedParams(model->cameras[c], options);
+  }
+  for (size_t i = 0; i < num_images; ++i) {
+    if (image_used[i]) ++images_of_camera[model->images[i].camera];
+  }
+  auto constant_params = [&](int c) {
+    std::vector<int> constant;
+    for (int k = 0; k < model->cameras[c].info().num_params(); ++k) {
+      if (!std::binary_search(refined[c].begin(), refined[c].end(), k)) constant.push_back(k);
+    }
+    return constant;
+  };
+
+  // Rotations (Ceres order w, x, y, z), or whole merged camera blocks
+  // [q(4), C(3), intrinsics(N)] for images with a camera group of their own.
+  std::vector<std::array<double, 4>> rotations(num_images);
+  std::vector<std::vector<double>> merged(num_images);
+  for (size_t i = 0; i < num_images; ++i) {
+    if (!image_used[i]) continue;
+    const Image& image = model->images[i];
+    const Eigen::Quaterniond q = image.pose.cam_from_world.normalized();
+    rotations[i] = {q.w(), q.x(), q.y(), q.z()};
+    const bool merge = images_of_camera[image.camera] == 1 && !refined[image.camera].empty() &&
+                       !(options.use_gps_priors && image.gps_prior) &&
+                       !(fix_rotation_of_a && static_cast<int>(i) == datum.a);
+    if (merge) {
+      const Camera& camera = model->cameras[image.camera];
+      merged[i] = {q.w(), q.x(), q.y(), q.z()};
+      for (int k = 0; k < 3; ++k) merged[i].push_back(image.pose.centre_in_world[k]);
+      merged[i].insert(merged[i].end(), camera.params.begin(), camera.params.end());
+    }
+  }
+
+  for (const Observation& obs : model->observations) {
+    Image& image = model->images[obs.image];
+    if (!image_used[obs.image] || !point_used[obs.point]) continue;
+    Camera& camera = model->cameras[image.camera];
+    double* point = model->points[obs.point].position.data();
+    const bool is_merged = !merged[obs.image].empty();
+    ceres::CostFunction* cost =
+        VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
+          using Model = decltype(m);
+          if (is_merged) {
+            return new ReprojectionCostMergedCamera<Model>(obs.xy, options.observation_sigma_px);
+          }
+          return new ReprojectionCost<Model>(obs.xy, options.observation_sigma_px);
+        });
+    if (is_merged) {
+      problem.AddResidualBlock(cost, loss.get(), merged[obs.image].data(), point);
+    } else {
+      problem.AddResidualBlock(cost, loss.get(), rotations[obs.image].data(),
+                               image.pose.centre_in_world.data(), point, camera.params.data());
+    }
+  }
+
+  if (options.use_gps_priors) {
+    for (size_t i = 0; i < num_images; ++i) {
+      Image& image = model->images[i];
+      if (!image_used[i] || !image.gps_prior) continue;
+      problem.AddResidualBlock(new PositionPriorCost(image.gps_prior->position,
+                                                     image.gps_prior->sigma_h_m,
+                                                     image.gps_prior->sigma_v_m),
+                               nullptr, image.pose.centre_in_world.data());
+      ++result.num_gps;
+    }
+  }
+  if (options.use_gcp_priors) {
+    for (size_t p = 0; p < model->points.size(); ++p) {
+      Point& point = model->points[p];
+      if (!point_used[p] || point.role != PointRole::kControl || !point.prior) continue;
+      problem.AddResidualBlock(
+          new PositionPriorCost(point.prior->position, point.prior->sigma_h_m,
+                                point.prior->sigma_v_m),
+          nullptr, point.position.data());
+      ++result.num_gcp;
+    }
+  }
+
+  // Manifolds and constant blocks.
+  for (size_t i = 0; i < num_images; ++i) {
+    if (!image_used[i]) continue;
+    ++result.num_images;
+    const int c = model->images[i].camera;
+    if (!merged[i].empty()) {
+      const std::vector<int> constant = constant_params(c);
+      owned_manifolds.push_back(
+          std::make_unique<ceres::ProductManifold<ceres::QuaternionManifold,
+                                                  ceres::EuclideanManifold<3>,
+                                                  ceres::SubsetManifold>>(
+              ceres::QuaternionManifold{}, ceres::EuclideanManifold<3>{},
+              ceres::SubsetManifold(model->cameras[c].info().num_params(), constant)));
+      problem.SetManifold(merged[i].data(), owned_manifolds.back().get());
+    } else {
+      problem.SetManifold(rotations[i].data(), &quaternion_manifold);
+      if (fix_rotation_of_a && static_cast<int>(i) == datum.a) {
+        problem.SetParameterBlockConstant(rotations[i].data());
+      }
+    }
+  }
+  for (size_t c = 0; c < model->cameras.size(); ++c) {
+    Camera& camera = model->cameras[c];
+    if (!camera_used[c] || !problem.HasParameterBlock(camera.params.data())) continue;
+    const int n = camera.info().num_params();
+    if (refined[c].empty()) {
+      problem.SetParameterBlockConstant(camera.params.data());
+    } else if (static_cast<int>(refined[c].size()) < n) {
+      owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(n, constant_params(c)));
+      problem.SetManifold(camera.params.data(), owned_manifolds.back().get());
+    }
+  }
+
+  {
+    std::ostringstream gauge;
+    if (datum_from_priors) {
+      gauge << "datum from priors (" << result.num_gps << " GPS, " << result.num_gcp
+            << " GCP); no parameter held fixed";
+    } else if (datum.a >= 0) {
+      const std::string a = model->images[datum.a].name;
+      const std::string b = datum.b >= 0 ? model->images[datum.b].name : "";
+      if (prior_positions.empty()) {
+        gauge << "no priors: pose of image '" << a << "' and baseline '" << a << "'-'" << b
+              << "' held at their initial values (free-network solve, then the exact "
+                 "similarity transform back)";
+      } else {
+        gauge << "priors too few or collinear (" << prior_positions.size()
+              << "): rotation of image '" << a << "' held fixed";
+        if (restore_scale) gauge << ", baseline '" << a << "'-'" << b << "' holds the scale";
+      }
+    }
+    result.gauge = gauge.str();
+  }
+
+  ceres::Solver::Options solver_options;
+  solver_options.minimizer_type = ceres::TRUST_REGION;
+  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  if (options.max_time_s > 0.0) solver_options.max_solver_time_in_seconds = options.max_time_s;
+  solver_options.num_threads = options.num_threads > 0
+                                   ? options.num_threads
+                                   : std::max(1u, std::thread::hardware_concurrency());
+  solver_options.logging_type = ceres::SILENT;
+
+  LinearSolverChoice solver = options.linear_solver;
+  if (solver == LinearSolverChoice::kAuto) {
+    solver = result.num_images <= 250    ? LinearSolverChoice::kDenseSchur
+             : result.num_images <= 3000 ? LinearSolverChoice::kSparseSchur
+                                         : LinearSolverChoice::kIterativeSchur;
+  }
+  switch (solver) {
+    case LinearSolverChoice::kAuto:
+    case LinearSolverChoice::kDenseSchur:
+      solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+      break;
+    case LinearSolverChoice::kSparseSchur:
+      solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
+      break;
+    case LinearSolverChoice::kIterativeSchur:
+      solver_options.linear_solver_type = ceres::ITERATIVE_SCHUR;
+      solver_options.preconditioner_type = ceres::SCHUR_JACOBI;
+      solver_options.use_explicit_schur_complement = true;
+      break;
+  }
+  result.solver = ToString(solver);
+
+  // Schur elimination order: points first, then everything else.
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    if (point_used[p]) ordering->AddElementToGroup(model->points[p].position.data(), 0);
+  }
+  for (size_t i = 0; i < num_images; ++i) {
+    if (!image_used[i]) continue;
+    if (!merged[i].empty()) {
+      ordering->AddElementToGroup(merged[i].data(), 1);
+    } else {
+      ordering->AddElementToGroup(rotations[i].data(), 1);
+      ordering->AddElementToGroup(model->images[i].pose.centre_in_world.data(), 1);
+    }
+  }
+  for (size_t c = 0; c < model->cameras.size(); ++c) {
+    if (camera_used[c] && problem.HasParameterBlock(model->cameras[c].params.data())) {
+      ordering->AddElementToGroup(model->cameras[c].params.data(), 1);
+    }
+  }
+  if (result.num_points > 0) solver_options.linear_solver_ordering = ordering;
+
+  std::unique_ptr<IterationForwarder> forwarder;
+  if (options.iteration_callback) {
+    forwarder = std::make_unique<IterationForwarder>(options.iteration_callback, round);
+    solver_options.callbacks.push_back(forwarder.get());
+  }
+  result.setup_s = SecondsSince(setup_start);
+
+  if (problem.NumResidualBlocks() > 0) {
+    ceres::Solve(solver_options, &problem, &result.ceres);
+    if (std::getenv("AEROTRI_CERES_REPORT")) {
+      std::fprintf(stderr, "%s\n", result.ceres.FullReport().c_str());
+    }
+  }
+
+  for (size_t i = 0; i < num_images; ++i) {
+    if (!image_used[i]) continue;
+    Image& image = model->images[i];
+    const double* q = merged[i].empty() ? rotations[i].data() : merged[i].data();
+    image.pose.cam_from_world = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+    if (!merged[i].empty()) {
+      for (int k = 0; k < 3; ++k) image.pose.centre_in_world[k] = merged[i][4 + k];
+      Camera& camera = model->cameras[image.camera];
+      std::copy(merged[i].begin() + 7, merged[i].end(), camera.params.begin());
+    }
+  }
+  if (!datum_from_priors) {
+    RestoreDatum(datum, /*restore_rotation=*/prior_positions.empty(),
+                 prior_positions.empty() || restore_scale, image_used, point_used, model);
+  }
+  return result;
+}
+
+int CountBehindCamera(const SparseModel& model) {
+  int behind = 0;
+  for (const Observation& obs : model.observations) {
+    const Image& image = model.images[obs.image];
+    if (!image.registered) continue;
+    if (image.pose.CamFromWorld(model.points[obs.point].position).z() <= 0.0) {
+      ++behind;
+    }
+  }
+  return behind;
+}
+
+double RmsOfAdjusted(const SparseModel& model, const std::vector<double>& errors) {
+  double sum = 0.0;
+  int n = 0;
+  for (size_t i = 0; i < errors.size(); ++i) {
+    const Observation& obs = model.observations[i];
+    if (!model.images[obs.image].registered ||
+        model.points[obs.point].role == PointRole::kCheck || !std::isfinite(errors[i])) {
+      continue;
+    }
+    sum += errors[i] * errors[i];
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / n) : 0.0;
+}
+
+double MaxRayAngleDeg(const SparseModel& model, const std::vector<int>& obs_of_point) {
+  std::vector<Eigen::Vector3d> rays;
+  for (int o : obs_of_point) {
+    const Observation& obs = model.observations[o];
+    const Eigen::Vector3d ray = model.points[obs.point].position -
+                                model.images[obs.image].pose.centre_in_world;
+    if (ray.norm() > 0.0) rays.push_back(ray.normalized());
+  }
+  double min_cos = 1.0;
+  const size_t n = std::min<size_t>(rays.size(), 40);
+  for (size_t a = 0; a < n; ++a) {
+    for (size_t b = a + 1; b < n; ++b) min_cos = std::min(min_cos, rays[a].dot(rays[b]));
+  }
+  return std::acos(std::clamp(min_cos, -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+}  // namespace
+
+std::string ToString(LossType loss) {
+  switch (loss) {
+    case LossType::kNone: return "none";
+    case LossType::kHuber: return "huber";
+    case LossType::kCauchy: return "cauchy";
+    case LossType::kTukey: return "tukey";
+  }
+  return "?";
+}
+
+std::string ToString(LinearSolverChoice solver) {
+  switch (solver) {
+    case LinearSolverChoice::kAuto: return "auto";
+    case LinearSolverChoice::kDenseSchur: return "dense_schur";
+    case LinearSolverChoice::kSparseSchur: return "sparse_schur";
+    case LinearSolverChoice::kIterativeSchur: return "iterative_schur";
+  }
+  return "?";
+}
+
+std::string ToString(IntrinsicsRefinement refinement) {
+  switch (refinement) {
+    case IntrinsicsRefinement::kNone: return "none";
+    case IntrinsicsRefinement::kFocal: return "focal";
+    case IntrinsicsRefinement::kFocalPrincipalPoint: return "focal,pp";
+    case IntrinsicsRefinement::kAll: return "all";
+    case IntrinsicsRefinement::kList: return "list";
+  }
+  return "?";
+}
+
+std::optional<LossType> ParseLossType(const std::string& name) {
+  for (LossType t : {LossType::kNone, LossType::kHuber, LossType::kCauchy, LossType::kTukey}) {
+    if (ToString(t) == Lower(name)) return t;
+  }
+  return std::nullopt;
+}
+
+std::optional<LinearSolverChoice> ParseLinearSolver(const std::string& name) {
+  for (LinearSolverChoice s :
+       {LinearSolverChoice::kAuto, LinearSolverChoice::kDenseSchur,
+        LinearSolverChoice::kSparseSchur, LinearSolverChoice::kIterativeSchur}) {
+    if (ToString(s) == Lower(name)) return s;
+  }
+  return std::nullopt;
+}
+
+std::optional<IntrinsicsRefinement> ParseIntrinsicsRefinement(
+    const std::string& text, std::vector<std::string>* params) {
+  const std::string t = Lower(text);
+  if (t == "none") return IntrinsicsRefinement::kNone;
+  if (t == "focal" || t == "f") return IntrinsicsRefinement::kFocal;
+  if (t == "focal,pp" || t == "f,pp" || t == "f,cx,cy") {
+    return IntrinsicsRefinement::kFocalPrincipalPoint;
+  }
+  if (t == "all") return IntrinsicsRefinement::kAll;
+  std::vector<std::string> names;
+  std::stringstream stream(t);
+  std::string item;
+  static const std::vector<std::string> kKnown = {"f", "cx", "cy", "pp", "k1", "k2",
+                                                  "k3", "p1", "p2"};
+  while (std::getline(stream, item, ',')) {
+    if (std::find(kKnown.begin(), kKnown.end(), item) == kKnown.end()) return std::nullopt;
+    names.push_back(item);
+  }
+  if (names.empty()) return std::nullopt;
+  if (params) *params = names;
+  return IntrinsicsRefinement::kList;
+}
+
+bool BundleOptions::Validate(std::string* error) const {
+  auto fail = [&](const std::string& message) {
+    if (error) *error = message;
+    return false;
+  };
+  if (!(loss_scale_px > 0.0)) {
+    return fail("loss scale must be > 0 px, got " + std::to_string(loss_scale_px));
+  }
+  if (!(observation_sigma_px > 0.0)) {
+    return fail("observation sigma must be > 0 px, got " +
+                std::to_string(observation_sigma_px));
+  }
+  if (num_threads < 0) return fail("threads must be >= 0 (0 = all), got " + std::to_string(num_threads));
+  if (max_iterations < 0) return fail("max iterations must be >= 0, got " + std::to_string(max_iterations));
+  if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) ||
+      !(parameter_tolerance >= 0.0)) {
+    return fail("solver tolerances must be >= 0");
+  }
+  if (!(outlier_threshold_px >= 0.0)) {
+    return fail("outlier threshold must be >= 0 px (0 = off), got " +
+                std::to_string(outlier_threshold_px));
+  }
+  if (max_outlier_rounds < 0) return fail("outlier rounds must be >= 0");
+  if (refine_intrinsics == IntrinsicsRefinement::kList && refine_params.empty()) {
+    return fail("intrinsics refinement 'list' needs at least one parameter name");
+  }
+  return true;
+}
+
+std::vector<double> ReprojectionErrors(const SparseModel& model) {
+  std::vector<double> errors(model.observations.size());
+  for (size_t i = 0; i < model.observations.size(); ++i) {
+    const Observation& obs = model.observations[i];
+    const Image& image = model.images[obs.image];
+    const Eigen::Vector3d p = image.pose.CamFromWorld(model.points[obs.point].position);
+    if (p.z() == 0.0) {
+      errors[i] = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    errors[i] = (model.cameras[image.camera].ImageFromCamera(p) - obs.xy).norm();
+  }
+  return errors;
+}
+
+BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
+  AEROTRI_CHECK(model != nullptr);
+  const auto start = Clock::now();
+  std::string error;
+  if (!options.Validate(&error)) throw InvalidArgument("bundle adjustment: " + error);
+  model->Validate();
+
+  BundleSummary summary;
+  summary.num_behind_camera_initial = CountBehindCamera(*model);
+  summary.initial_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
+  summary.refined_intrinsics = ToString(options.refine_intrinsics);
+  if (options.refine_intrinsics == IntrinsicsRefinement::kList) {
+    summary.refined_intrinsics.clear();
+    for (const auto& p : options.refine_params) {
+      summary.refined_intrinsics += (summary.refined_intrinsics.empty() ? "" : ",") + p;
+    }
+  }
+
+  const int max_rounds = options.outlier_threshold_px > 0.0 ? options.max_outlier_rounds : 0;
+  for (int round = 0;; ++round) {
+    RoundResult result = SolveOnce(model, options, round);
+    if (round == 0) {
+      summary.initial_cost = result.ceres.initial_cost;
+      summary.gauge = result.gauge;
+      summary.linear_solver = result.solver;
+    }
+    summary.final_cost = result.ceres.final_cost;
+    summary.iterations += static_cast<int>(result.ceres.iterations.size()) > 0
+                              ? static_cast<int>(result.ceres.iterations.size()) - 1
+                              : 0;
+    summary.termination = std::string(ceres::TerminationTypeToString(
+                              result.ceres.termination_type)) +
+                          ": " + result.ceres.message;
+    summary.converged = result.ceres.termination_type == ceres::CONVERGENCE;
+    summary.setup_time_s += result.setup_s;
+    summary.solve_time_s += result.ceres.total_time_in_seconds;
+    summary.num_images = result.num_images;
+    summary.num_points = result.num_points;
+    summary.num_observations = result.num_observations;
+    summary.num_gps_priors = result.num_gps;
+    summary.num_gcp_priors = result.num_gcp;
+    summary.num_skipped_points = result.skipped_points;
+    summary.num_camera_groups = 0;
+
+    if (round >= max_rounds) break;
+    // Reject observations beyond the threshold and solve again.
+    const std::vector<double> errors = ReprojectionErrors(*model);
+    std::vector<Observation> kept;
+    kept.reserve(model->observations.size());
+    int removed = 0;
+    for (size_t i = 0; i < errors.size(); ++i) {
+      const Observation& obs = model->observations[i];
+      const bool adjusted = model->images[obs.image].registered &&
+                            model->points[obs.point].role != PointRole::kCheck;
+      if (adjusted && !(errors[i] <= options.outlier_threshold_px)) {
+        ++removed;
+      } else {
+        kept.push_back(obs);
+      }
+    }
+    if (removed == 0) break;
+    model->observations.swap(kept);
+    summary.outliers_removed += removed;
+    summary.outlier_rounds = round + 1;
+  }
+
+  // Diagnostics.
+  {
+    std::vector<char> used(model->cameras.size(), 0);
+    for (const Image& image : model->images) {
+      if (image.registered) used[image.camera] = 1;
+    }
+    summary.num_camera_groups = static_cast<int>(std::count(used.begin(), used.end(), 1));
+  }
+  summary.num_behind_camera_final = CountBehindCamera(*model);
+  summary.final_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
+  const std::vector<int> per_image = model->ObservationsPerImage();
+  for (size_t i = 0; i < model->images.size(); ++i) {
+    if (model->images[i].registered && per_image[i] < options.weak_image_min_observations) {
+      summary.weak_images.push_back({model->images[i].name, per_image[i]});
+    }
+  }
+  std::vector<std::vector<int>> obs_of_point(model->points.size());
+  for (size_t o = 0; o < model->observations.size(); ++o) {
+    obs_of_point[model->observations[o].point].push_back(static_cast<int>(o));
+  }
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    if (model->points[p].role != PointRole::kTie || obs_of_point[p].size() < 2) continue;
+    if (MaxRayAngleDeg(*model, obs_of_point[p]) < options.weak_point_min_angle_deg) {
+      ++summary.weak_points_small_angle;
+    }
+  }
+  summary.total_time_s = SecondsSince(start);
+  return summary;
+}
+
+std::string BundleSummary::BriefReport() const {
+  std::ostringstream out;
+  out.precision(6);
+  out << "bundle adjustment: " << num_images << " images, " << num_camera_groups
+      << " camera groups, " << num_points << " points, " << num_observations
+      << " observations";
+  if (num_gps_priors > 0 || num_gcp_priors > 0) {
+    out << ", " << num_gps_priors << " GPS priors, " << num_gcp_priors << " GCP priors";
+  }
+  out << "\n";
+  out << "  solver: " << linear_solver << ", intrinsics refined: " << refined_intrinsics << "\n";
+  out << "  gauge: " << gauge << "\n";
+  out << "  cost: " << initial_cost << " -> " << final_cost << " (½Σ‖r‖²), rms: "
+      << initial_rms_px << " -> " << final_rms_px << " px\n";
+  out << "  iterations: " << iterations << ", termination: " << termination << "\n";
+  out << "  observations behind their camera (kept): " << num_behind_camera_initial
+      << " initially, " << num_behind_camera_final << " after\n";
+  if (outlier_rounds > 0 || outliers_removed > 0) {
+    out << "  outliers rejected: " << outliers_removed << " in " << outlier_rounds
+        << " rounds\n";
+  }
+  if (num_skipped_points > 0) {
+    out << "  tie points skipped (fewer than 2 observations): " << num_skipped_points << "\n";
+  }
+  if (!weak_images.empty()) {
+    out << "  weak images (few observations): " << weak_images.size() << " (";
+    for (size_t i = 0; i < weak_images.size() && i < 5; ++i) {
+      out << (i ? ", " : "") << weak_images[i].name << ": " << weak_images[i].observations;
+    }
+    out << (weak_images.size() > 5 ? ", ...)" : ")") << "\n";
+  }
+  out << "  weak points (narrow rays): " << weak_points_small_angle << "\n";
+  out << "  time: setup " << setup_time_s << " s, solve " << solve_time_s << " s, total "
+      << total_time_s << " s";
+  return out.str();
+}
+
+}  // namespace aerotri

@@ -1,0 +1,147 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Bundle adjustment of a SparseModel with Ceres (Levenberg–Marquardt, Schur
+// linear solvers), generic over camera models.
+//
+// Parameter blocks: per registered image its rotation (unit quaternion on
+// ceres::QuaternionManifold) and its centre; per camera group its intrinsics
+// (refined as BundleOptions says); per tie / control point its position.
+// Residuals: reprojection (analytic Jacobians, optional robust loss whose
+// scale is in pixels), GPS priors on camera centres, surveyed priors on
+// control points. Check points never enter the adjustment.
+//
+// Gauge: with three or more non-collinear priors the datum comes from them
+// and no parameter is held fixed. Otherwise one image's pose and one
+// coordinate of the longest baseline from it are held fixed (7 degrees of
+// freedom: position, orientation, scale); BundleSummary::gauge says which.
+//
+// Costs follow Ceres: ½Σ‖r‖² over all (robustified) residuals; with no priors,
+// no loss and sigma 1 px this is the BAL literature's cost in px².
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "libphoto/model/sparse_model.h"
+
+namespace aerotri {
+
+enum class LossType { kNone, kHuber, kCauchy, kTukey };
+enum class LinearSolverChoice { kAuto, kDenseSchur, kSparseSchur, kIterativeSchur };
+enum class IntrinsicsRefinement {
+  kNone,                 // intrinsics held fixed
+  kFocal,                // f
+  kFocalPrincipalPoint,  // f, cx, cy
+  kAll,                  // every parameter of the model
+  kList,                 // the names in BundleOptions::refine_params
+};
+
+std::string ToString(LossType loss);
+std::string ToString(LinearSolverChoice solver);
+std::string ToString(IntrinsicsRefinement refinement);
+std::optional<LossType> ParseLossType(const std::string& name);
+std::optional<LinearSolverChoice> ParseLinearSolver(const std::string& name);
+// "none", "focal", "focal,pp", "all", or a comma-separated list of parameter
+// names ("f,k1,k2"); the list is returned in *params.
+std::optional<IntrinsicsRefinement> ParseIntrinsicsRefinement(
+    const std::string& text, std::vector<std::string>* params);
+
+struct IterationReport {
+  int iteration = 0;      // 0 is the initial state
+  double cost = 0.0;      // ½Σ‖r‖²
+  double time_s = 0.0;    // since the solver started
+  int round = 0;          // outlier-rejection round (0 = first solve)
+};
+
+struct BundleOptions {
+  // Robust loss on reprojection residuals; loss_scale_px is where it departs
+  // from least squares (Huber, Cauchy) or cuts off (Tukey), in pixels.
+  LossType loss = LossType::kNone;
+  double loss_scale_px = 1.0;
+  // Standard deviation of an image measurement (px); scales reprojection
+  // residuals against priors.
+  double observation_sigma_px = 1.0;
+
+  IntrinsicsRefinement refine_intrinsics = IntrinsicsRefinement::kAll;
+  std::vector<std::string> refine_params;  // for kList
+
+  bool use_gps_priors = true;
+  bool use_gcp_priors = true;
+
+  LinearSolverChoice linear_solver = LinearSolverChoice::kAuto;
+  int num_threads = 0;  // 0: all hardware threads
+  int max_iterations = 100;
+  double function_tolerance = 1e-6;
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-8;
+  double max_time_s = 0.0;  // 0: no limit
+
+  // After convergence, observations whose reprojection error exceeds this
+  // (px) are rejected and the problem is solved again, up to
+  // max_outlier_rounds times. 0 disables rejection.
+  double outlier_threshold_px = 0.0;
+  int max_outlier_rounds = 2;
+
+  // Diagnostics: images with fewer observations than this, and tie points
+  // whose widest ray pair is narrower than this angle, are reported as weak.
+  int weak_image_min_observations = 20;
+  double weak_point_min_angle_deg = 2.0;
+
+  std::function<void(const IterationReport&)> iteration_callback;
+
+  // Ceres-style validation: false with a message naming the option, its
+  // value and the allowed range.
+  bool Validate(std::string* error) const;
+};
+
+struct WeakImage {
+  std::string name;
+  int observations = 0;
+};
+
+struct BundleSummary {
+  int num_images = 0;          // adjusted (registered) images
+  int num_camera_groups = 0;
+  int num_points = 0;          // adjusted points (tie + control)
+  int num_observations = 0;    // reprojection residuals
+  int num_gps_priors = 0;
+  int num_gcp_priors = 0;
+  int num_skipped_points = 0;  // tie points with fewer than 2 observations
+  int num_behind_camera_initial = 0;  // observations with z <= 0 (kept)
+  int num_behind_camera_final = 0;
+
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  double initial_rms_px = 0.0;  // sqrt(mean ‖xy − observed‖²) over observations
+  double final_rms_px = 0.0;
+  int iterations = 0;           // summed over outlier rounds
+  int outlier_rounds = 0;
+  int outliers_removed = 0;
+  std::string termination;      // Ceres termination type and message
+  bool converged = false;
+
+  std::string linear_solver;
+  std::string gauge;            // what anchors the datum
+  std::string refined_intrinsics;
+
+  double setup_time_s = 0.0;
+  double solve_time_s = 0.0;
+  double total_time_s = 0.0;
+
+  std::vector<WeakImage> weak_images;
+  int weak_points_small_angle = 0;
+
+  // Several lines, human readable.
+  std::string BriefReport() const;
+};
+
+// Adjusts model in place. Throws InvalidArgument for invalid options or an
+// invalid model; a solver failure is reported in the summary, not thrown.
+BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options);
+
+// Reprojection error (px, Euclidean) of each observation, index-aligned with
+// model.observations; NaN where the point is on the camera plane (z = 0).
+std::vector<double> ReprojectionErrors(const SparseModel& model);
+
+}  // namespace aerotri

@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/base/atomic_file.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+namespace fs = std::filesystem;
+
+fs::path TemporaryPathFor(const fs::path& path) {
+  static std::atomic<int> counter{0};
+  fs::path tmp = path;
+  tmp += ".tmp." + std::to_string(::getpid()) + "." +
+         std::to_string(counter.fetch_add(1));
+  return tmp;
+}
+
+void CommitTemporaryFile(const fs::path& temporary, const fs::path& path) {
+  std::error_code ec;
+  fs::rename(temporary, path, ec);
+  if (ec) {
+    fs::remove(temporary, ec);
+    throw IoError(path.string(), "cannot rename the finished temporary file " +
+                                     temporary.string() + " onto it: " +
+                                     ec.message());
+  }
+}
+
+void WriteFileAtomically(const fs::path& path,
+                         const std::function<void(std::ostream&)>& write) {
+  if (path.has_parent_path() && !fs::exists(path.parent_path())) {
+    std::error_code ec;
+    fs::create_directories(path.parent_path(), ec);
+    if (ec) throw IoError(path.parent_path().string(), "cannot create folder: " + ec.message());
+  }
+  const fs::path tmp = TemporaryPathFor(path);
+  try {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw IoError(tmp.string(), std::string("cannot open for writing: ") + std::strerror(errno));
+    write(out);
+    out.flush();
+    if (!out) throw IoError(tmp.string(), "write failed (disk full?)");
+    out.close();
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw;
+  }
+  CommitTemporaryFile(tmp, path);
+}
+
+void WriteTextFileAtomically(const fs::path& path, const std::string& text) {
+  WriteFileAtomically(path, [&](std::ostream& out) { out << text; });
+}
+
+std::string ReadTextFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(path.string(), std::string("cannot open for reading: ") + std::strerror(errno));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  if (in.bad()) throw IoError(path.string(), "read failed");
+  return buffer.str();
+}
+
+}  // namespace aerotri

@@ -1,0 +1,63 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/model/sparse_model.h"
+
+#include <cmath>
+
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+
+void SparseModel::Validate() const {
+  for (const Camera& camera : cameras) camera.Validate();
+  for (const Image& image : images) {
+    if (image.camera < 0 || image.camera >= static_cast<int>(cameras.size())) {
+      throw InvalidArgument("image '" + image.name + "' refers to camera index " +
+                            std::to_string(image.camera) + ", but there are " +
+                            std::to_string(cameras.size()) + " cameras");
+    }
+    if (!image.pose.centre_in_world.allFinite() ||
+        !image.pose.cam_from_world.coeffs().allFinite()) {
+      throw InvalidArgument("image '" + image.name + "' has a non-finite pose");
+    }
+  }
+  for (const Point& point : points) {
+    if (!point.position.allFinite()) {
+      throw InvalidArgument("point " + std::to_string(point.id) +
+                            " has a non-finite position");
+    }
+  }
+  for (size_t i = 0; i < observations.size(); ++i) {
+    const Observation& obs = observations[i];
+    if (obs.image < 0 || obs.image >= static_cast<int>(images.size()) ||
+        obs.point < 0 || obs.point >= static_cast<int>(points.size())) {
+      throw InvalidArgument("observation " + std::to_string(i) +
+                            " refers to image " + std::to_string(obs.image) +
+                            " / point " + std::to_string(obs.point) +
+                            ", outside the model");
+    }
+    if (!obs.xy.allFinite()) {
+      throw InvalidArgument("observation " + std::to_string(i) +
+                            " has non-finite pixel coordinates");
+    }
+  }
+}
+
+std::vector<int> SparseModel::ObservationsPerPoint() const {
+  std::vector<int> count(points.size(), 0);
+  for (const Observation& obs : observations) ++count[obs.point];
+  return count;
+}
+
+std::vector<int> SparseModel::ObservationsPerImage() const {
+  std::vector<int> count(images.size(), 0);
+  for (const Observation& obs : observations) ++count[obs.image];
+  return count;
+}
+
+int SparseModel::NumRegisteredImages() const {
+  int n = 0;
+  for (const Image& image : images) n += image.registered ? 1 : 0;
+  return n;
+}
+
+}  // namespace aerotri

@@ -1,0 +1,102 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// The sparse survey model: camera groups, images with poses, 3D points (tie
+// points, ground control points, check points) and their image observations.
+//
+// Frames: points and camera centres are in the adjustment frame: a local
+// metric frame, normally ENU metres tangent at the survey's reference point
+// (see georef/local_frame.h); a BAL problem keeps its own arbitrary frame.
+// A pose holds the world-to-camera rotation and the camera centre in world:
+//   point_in_cam = cam_from_world * (point_in_world - centre_in_world)
+// with the camera frame +z forward, x right, y down (OpenCV). Keeping the
+// centre as the parameter makes GPS priors direct.
+// Observations are pixels with (0, 0) at the centre of the top-left pixel.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera_models/camera.h"
+
+namespace aerotri {
+
+struct Pose {
+  Eigen::Quaterniond cam_from_world = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d centre_in_world = Eigen::Vector3d::Zero();
+
+  Eigen::Vector3d CamFromWorld(const Eigen::Vector3d& point_in_world) const {
+    return cam_from_world * (point_in_world - centre_in_world);
+  }
+  // Translation t of the x_cam = R X + t form (COLMAP, BAL).
+  Eigen::Vector3d Translation() const {
+    return -(cam_from_world * centre_in_world);
+  }
+  static Pose FromRotationTranslation(const Eigen::Quaterniond& cam_from_world,
+                                      const Eigen::Vector3d& t) {
+    Pose pose;
+    pose.cam_from_world = cam_from_world.normalized();
+    pose.centre_in_world = -(pose.cam_from_world.conjugate() * t);
+    return pose;
+  }
+};
+
+// A position prior in the adjustment frame with separate horizontal and
+// vertical standard deviations (metres): GPS on a camera centre, a surveyed
+// position on a control point.
+struct PositionPrior {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  double sigma_h_m = 1.0;
+  double sigma_v_m = 1.0;
+};
+
+enum class PointRole {
+  kTie,      // triangulated from images only
+  kControl,  // ground control point: surveyed prior enters the adjustment
+  kCheck,    // check point: never enters the adjustment, compared afterwards
+};
+
+struct Image {
+  int id = 0;            // external id (COLMAP IMAGE_ID, BAL camera index)
+  std::string name;      // file name relative to the images folder
+  int camera = 0;        // index into SparseModel::cameras
+  Pose pose;
+  bool registered = true;
+  std::optional<PositionPrior> gps_prior;  // on the camera centre
+};
+
+struct Point {
+  int id = 0;  // external id (COLMAP POINT3D_ID, BAL point index)
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  std::array<std::uint8_t, 3> color{{128, 128, 128}};
+  PointRole role = PointRole::kTie;
+  std::string name;                    // GCP / check-point name
+  std::optional<PositionPrior> prior;  // surveyed position (control points)
+};
+
+struct Observation {
+  int image = 0;  // index into SparseModel::images
+  int point = 0;  // index into SparseModel::points
+  Eigen::Vector2d xy = Eigen::Vector2d::Zero();  // px
+  int keypoint = -1;  // index of the image's keypoint, -1 when unknown
+};
+
+struct SparseModel {
+  std::vector<Camera> cameras;
+  std::vector<Image> images;
+  std::vector<Point> points;
+  std::vector<Observation> observations;
+
+  // Throws InvalidArgument naming the first broken reference or value.
+  void Validate() const;
+  // Number of observations per point / per image (index-aligned).
+  std::vector<int> ObservationsPerPoint() const;
+  std::vector<int> ObservationsPerImage() const;
+  int NumRegisteredImages() const;
+};
+
+}  // namespace aerotri

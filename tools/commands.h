@@ -1,0 +1,36 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// The subcommands of the aerotri executable. Each has an argument struct, a
+// Register function that declares its options on a CLI11 app (the --help text
+// comes from these declarations), and a Run function callable in-process.
+// Run functions return the exit code: 0 success, 1 runtime or data error
+// (they throw aerotri::Error for bad data; main maps it to 1).
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+
+#include "tools/tool_context.h"
+
+namespace aerotri {
+
+// Sets *run to the chosen command's action once parsing succeeds.
+using CommandAction = std::function<int(ToolContext&)>;
+
+struct BalArgs {
+  std::string problem;
+  std::string output;
+  std::string loss = "none";
+  double loss_scale_px = 1.0;
+  std::string solver = "auto";
+  int threads = 0;
+  int max_iterations = 50;
+  std::string refine = "all";
+  double outlier_threshold_px = 0.0;
+  double function_tolerance = 1e-6;
+};
+void RegisterBalCommand(CLI::App& app, CommandAction* run);
+int RunBal(const BalArgs& args, ToolContext& ctx);
+
+}  // namespace aerotri

@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The aerotri command line: one binary, subcommands. Exit codes: 0 success,
+// 1 runtime or data error, 2 usage error.
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "libphoto/base/error.h"
+#include "tools/commands.h"
+#include "tools/tool_context.h"
+
+int main(int argc, char** argv) {
+  using namespace aerotri;
+  CLI::App app{
+      "aerotri: aerial triangulation and survey deliverables from drone photos.\n"
+      "Progress goes to stderr, data to stdout. Exit codes: 0 ok, 1 runtime/data error, "
+      "2 usage error."};
+  app.name("aerotri");
+  ToolContext ctx;
+  app.add_flag("--quiet,-q", ctx.quiet, "Silence progress on stderr");
+  app.set_version_flag("--version", VersionString());
+  app.require_subcommand(1);
+  app.fallthrough();  // --quiet also after the subcommand
+
+  CommandAction run;
+  RegisterBalCommand(app, &run);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;
+  }
+  if (!run) {
+    std::cerr << app.help();
+    return 2;
+  }
+  try {
+    return run(ctx);
+  } catch (const InternalError& e) {
+    std::cerr << "aerotri: " << e.what() << "\n";
+    return 1;
+  } catch (const Error& e) {
+    std::cerr << "aerotri: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "aerotri: error: out of memory\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "aerotri: error: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,56 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "tools/tool_context.h"
+
+#include <bzlib.h>
+#include <gdal.h>
+#include <proj.h>
+
+#include <CLI/Version.hpp>
+#include <Eigen/Core>
+#include <GeographicLib/Config.h>
+#include <ceres/version.h>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <opencv2/core/version.hpp>
+#include <sstream>
+
+#include "tools/version.h"
+
+namespace aerotri {
+
+void ToolContext::Info(const std::string& line) const {
+  if (!quiet) *err << line << "\n" << std::flush;
+}
+
+void ToolContext::Warn(const std::string& line) const {
+  *err << "warning: " << line << "\n" << std::flush;
+}
+
+ProgressCallback ToolContext::Progress(const std::string& stage) const {
+  if (quiet) return nullptr;
+  std::ostream* stream = err;
+  return [stream, stage](double fraction, const std::string& message) {
+    if (fraction >= 0.0) {
+      char pct[16];
+      std::snprintf(pct, sizeof(pct), "%3.0f%%", 100.0 * fraction);
+      *stream << stage << ": " << pct << " " << message << "\n" << std::flush;
+    } else {
+      *stream << stage << ": " << message << "\n" << std::flush;
+    }
+    return true;
+  };
+}
+
+std::string VersionString() {
+  std::ostringstream out;
+  out << "aerotri " << kAerotriVersion << " (ceres " << CERES_VERSION_STRING << ", eigen "
+      << EIGEN_WORLD_VERSION << "." << EIGEN_MAJOR_VERSION << "." << EIGEN_MINOR_VERSION
+      << ", opencv " << CV_VERSION << ", proj " << proj_info().version << ", gdal "
+      << GDALVersionInfo("RELEASE_NAME") << ", geographiclib "
+      << GEOGRAPHICLIB_VERSION_STRING << ", cli11 " << CLI11_VERSION << ", nlohmann-json "
+      << NLOHMANN_JSON_VERSION_MAJOR << "." << NLOHMANN_JSON_VERSION_MINOR << "."
+      << NLOHMANN_JSON_VERSION_PATCH << ", bzip2 " << BZ2_bzlibVersion() << ")";
+  return out.str();
+}
+
+}  // namespace aerotri
