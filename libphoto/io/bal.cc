@@ -67,15 +67,17 @@ SparseModel ReadBalProblem(const std::filesystem::path& path) {
   model.images.resize(num_cameras);
   for (std::int64_t c = 0; c < num_cameras; ++c) {
     double v[9];
-    for (double& x : v) x = in.Double("a camera parameter");
-    for (double x : v) {
-      if (!std::isfinite(x)) {
+    int focal_line = 0;
+    for (int k = 0; k < 9; ++k) {
+      v[k] = in.Double("a camera parameter");
+      if (k == 6) focal_line = in.line();
+      if (!std::isfinite(v[k])) {
         throw ParseError(path.string(), in.line(),
                          "camera " + std::to_string(c) + " has a non-finite parameter");
       }
     }
     if (!(v[6] > 0.0)) {
-      throw ParseError(path.string(), in.line(),
+      throw ParseError(path.string(), focal_line,
                        "camera " + std::to_string(c) + ": expected a positive focal length, got " +
                            std::to_string(v[6]));
     }

@@ -1,0 +1,241 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The bundle adjuster on synthetic surveys with known truth: errors must be
+// consistent with the injected noise (both bounds), the gauge must be what the
+// summary says, outliers must be found, options must validate.
+#include "libphoto/adjust/bundle_adjuster.h"
+
+#include <gtest/gtest.h>
+
+#include "libphoto/base/error.h"
+#include "libphoto/simulate/synthetic_survey.h"
+#include "tests/test_util.h"
+
+namespace aerotri {
+namespace {
+
+SyntheticSurveyOptions SmallSurvey(std::uint32_t seed) {
+  SyntheticSurveyOptions o;
+  o.seed = seed;
+  o.area_width_m = 160.0;
+  o.area_height_m = 110.0;
+  o.num_tie_points = 1200;
+  o.pixel_noise_px = 0.5;
+  return o;
+}
+
+std::vector<Eigen::Vector3d> Centres(const SparseModel& m) {
+  std::vector<Eigen::Vector3d> c;
+  for (const Image& image : m.images) c.push_back(image.pose.centre_in_world);
+  return c;
+}
+
+std::vector<Eigen::Vector3d> Positions(const SparseModel& m) {
+  std::vector<Eigen::Vector3d> c;
+  for (const Point& p : m.points) {
+    if (p.role != PointRole::kCheck) c.push_back(p.position);
+  }
+  return c;
+}
+
+TEST(BundleAdjuster, RecoversASyntheticSurveyToTheNoiseLevel) {
+  const SyntheticSurveyOptions o = SmallSurvey(11);
+  const SyntheticSurvey survey = MakeSyntheticSurvey(o);
+  SparseModel model = survey.observed;
+  std::mt19937 rng(11);
+  testing::Perturb(&model, rng, 0.5, 0.3, 0.3, 0.01);
+  for (Camera& c : model.cameras) {
+    for (int i = 3; i < 8; ++i) c.params[i] = 0.0;  // distortion unknown at start
+  }
+  const Pose initial_a = model.images[0].pose;
+
+  BundleOptions options;
+  const BundleSummary summary = AdjustBundle(&model, options);
+  SCOPED_TRACE(summary.BriefReport());
+  EXPECT_TRUE(summary.converged);
+  EXPECT_EQ(summary.num_images, static_cast<int>(model.images.size()));
+
+  // Each observation's error is 2D Gaussian with sigma per axis: the RMS of
+  // its norm is sigma * sqrt(2) (less the few degrees of freedom fitted).
+  const double expected_rms = o.pixel_noise_px * std::sqrt(2.0);
+  EXPECT_GT(summary.final_rms_px, 0.9 * expected_rms);
+  EXPECT_LT(summary.final_rms_px, 1.05 * expected_rms);
+  EXPECT_GT(summary.initial_rms_px, 10.0 * expected_rms);
+
+  // Gauge: no priors, so image 0's pose is back at its initial value exactly.
+  EXPECT_NE(summary.gauge.find("no priors"), std::string::npos);
+  EXPECT_LT((model.images[0].pose.centre_in_world - initial_a.centre_in_world).norm(), 1e-9);
+  EXPECT_LT(model.images[0].pose.cam_from_world.angularDistance(initial_a.cam_from_world), 1e-9);
+
+  // Shape: up to a similarity, cameras and points land where truth has them.
+  // 0.5 px at a GSD of ~2.7 cm is ~1.3 cm per ray; cameras, seen by hundreds
+  // of rays, do better; points, seen by few, about that.
+  const double camera_rms = testing::AlignedRms(Centres(model), Centres(survey.truth));
+  const double point_rms = testing::AlignedRms(Positions(model), Positions(survey.truth));
+  EXPECT_GT(camera_rms, 1e-4);
+  EXPECT_LT(camera_rms, 0.05);
+  EXPECT_GT(point_rms, 0.002);
+  EXPECT_LT(point_rms, 0.08);
+  // Self-calibration recovers k1 close to the truth (-0.08).
+  EXPECT_NEAR(model.cameras[0].params[3], o.brown_params[3], 0.01);
+}
+
+TEST(BundleAdjuster, GpsPriorsAnchorTheDatum) {
+  const SyntheticSurveyOptions o = SmallSurvey(12);
+  const SyntheticSurvey survey = MakeSyntheticSurvey(o);
+  SparseModel model = survey.observed;
+  std::mt19937 rng(12);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    PositionPrior prior;
+    prior.position = survey.truth.images[i].pose.centre_in_world +
+                     Eigen::Vector3d(0.05 * g(rng), 0.05 * g(rng), 0.1 * g(rng));
+    prior.sigma_h_m = 0.05;
+    prior.sigma_v_m = 0.1;
+    model.images[i].gps_prior = prior;
+  }
+  testing::Perturb(&model, rng, 1.0, 0.3, 0.5, 0.0);
+  BundleOptions options;
+  options.refine_intrinsics = IntrinsicsRefinement::kNone;
+  const BundleSummary summary = AdjustBundle(&model, options);
+  SCOPED_TRACE(summary.BriefReport());
+  EXPECT_NE(summary.gauge.find("datum from priors"), std::string::npos);
+  EXPECT_EQ(summary.num_gps_priors, static_cast<int>(model.images.size()));
+  // Absolute (not aligned) camera error is at the GPS noise level averaged
+  // over many images, not metres.
+  double sum = 0.0;
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    sum += (model.images[i].pose.centre_in_world - survey.truth.images[i].pose.centre_in_world)
+               .squaredNorm();
+  }
+  const double rms = std::sqrt(sum / model.images.size());
+  EXPECT_GT(rms, 0.002);
+  EXPECT_LT(rms, 0.12);
+}
+
+TEST(BundleAdjuster, RejectsGrossOutliersAndSolvesAgain) {
+  const SyntheticSurveyOptions o = SmallSurvey(13);
+  SparseModel model = MakeSyntheticSurvey(o).observed;
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int injected = 0;
+  for (Observation& obs : model.observations) {
+    if (u(rng) < 0.01) {
+      obs.xy += Eigen::Vector2d(40.0 + 40.0 * u(rng), -30.0 - 30.0 * u(rng));
+      ++injected;
+    }
+  }
+  BundleOptions options;
+  options.loss = LossType::kCauchy;
+  options.loss_scale_px = 2.0;
+  options.outlier_threshold_px = 4.0;
+  options.refine_intrinsics = IntrinsicsRefinement::kFocal;
+  const BundleSummary summary = AdjustBundle(&model, options);
+  SCOPED_TRACE(summary.BriefReport());
+  ASSERT_GT(injected, 50);
+  // Every injected outlier (> 50 px) goes, and almost nothing else does
+  // (a 0.5 px Gaussian exceeds 4 px with probability ~1e-14).
+  EXPECT_GE(summary.outliers_removed, injected - injected / 50);
+  EXPECT_LE(summary.outliers_removed, injected + 2);
+  EXPECT_GE(summary.outlier_rounds, 1);
+  EXPECT_LT(summary.final_rms_px, 1.05 * o.pixel_noise_px * std::sqrt(2.0));
+}
+
+TEST(BundleAdjuster, IntrinsicsRefinementChoiceIsRespected) {
+  const SyntheticSurveyOptions o = SmallSurvey(14);
+  for (IntrinsicsRefinement r : {IntrinsicsRefinement::kNone, IntrinsicsRefinement::kFocal,
+                                 IntrinsicsRefinement::kList}) {
+    SparseModel model = MakeSyntheticSurvey(o).observed;
+    std::mt19937 rng(14);
+    testing::Perturb(&model, rng, 0.2, 0.1, 0.1, 0.005);
+    const std::vector<double> before = model.cameras[0].params;
+    BundleOptions options;
+    options.refine_intrinsics = r;
+    options.refine_params = {"k1", "p2"};
+    options.max_iterations = 10;
+    AdjustBundle(&model, options);
+    const std::vector<double>& after = model.cameras[0].params;
+    for (int i = 0; i < 8; ++i) {
+      const bool refined = (r == IntrinsicsRefinement::kFocal && i == 0) ||
+                           (r == IntrinsicsRefinement::kList && (i == 3 || i == 7));
+      if (refined) {
+        EXPECT_NE(after[i], before[i]) << "parameter " << i << " should move";
+      } else {
+        EXPECT_EQ(after[i], before[i]) << "parameter " << i << " should stay";
+      }
+    }
+  }
+}
+
+TEST(BundleAdjuster, RobustLossesAllConvergeOnCleanData) {
+  const SyntheticSurveyOptions o = SmallSurvey(15);
+  for (LossType loss : {LossType::kNone, LossType::kHuber, LossType::kCauchy, LossType::kTukey}) {
+    SparseModel model = MakeSyntheticSurvey(o).observed;
+    std::mt19937 rng(15);
+    testing::Perturb(&model, rng, 0.05, 0.02, 0.03, 0.0);
+    BundleOptions options;
+    options.loss = loss;
+    options.loss_scale_px = 3.0;
+    options.refine_intrinsics = IntrinsicsRefinement::kNone;
+    const BundleSummary summary = AdjustBundle(&model, options);
+    EXPECT_LT(summary.final_rms_px, 1.05 * o.pixel_noise_px * std::sqrt(2.0)) << ToString(loss);
+    EXPECT_GT(summary.final_rms_px, 0.9 * o.pixel_noise_px * std::sqrt(2.0)) << ToString(loss);
+  }
+}
+
+TEST(BundleAdjuster, ReportsWeakImagesAndBehindCameraObservations) {
+  const SyntheticSurveyOptions o = SmallSurvey(16);
+  SparseModel model = MakeSyntheticSurvey(o).observed;
+  // Keep only 5 observations of the last image.
+  const int last = static_cast<int>(model.images.size()) - 1;
+  std::vector<Observation> kept;
+  int seen = 0;
+  for (const Observation& obs : model.observations) {
+    if (obs.image == last && ++seen > 5) continue;
+    kept.push_back(obs);
+  }
+  model.observations.swap(kept);
+  // Move one point behind the camera that sees it.
+  const Observation& first = model.observations.front();
+  const Pose& pose = model.images[first.image].pose;
+  model.points[first.point].position =
+      pose.centre_in_world + pose.cam_from_world.conjugate() * Eigen::Vector3d(0.0, 0.0, -20.0);
+  BundleOptions options;
+  options.max_iterations = 0;
+  const BundleSummary summary = AdjustBundle(&model, options);
+  EXPECT_GE(summary.num_behind_camera_initial, 1);
+  ASSERT_FALSE(summary.weak_images.empty());
+  EXPECT_EQ(summary.weak_images.back().name, model.images[last].name);
+  EXPECT_EQ(summary.weak_images.back().observations, 5);
+  EXPECT_NE(summary.BriefReport().find("behind their camera"), std::string::npos);
+}
+
+TEST(BundleOptions, ValidateNamesTheOption) {
+  BundleOptions options;
+  std::string error;
+  EXPECT_TRUE(options.Validate(&error));
+  options.loss_scale_px = -1.0;
+  EXPECT_FALSE(options.Validate(&error));
+  EXPECT_NE(error.find("loss scale"), std::string::npos);
+  options = BundleOptions();
+  options.refine_intrinsics = IntrinsicsRefinement::kList;
+  EXPECT_FALSE(options.Validate(&error));
+  SparseModel empty;
+  options = BundleOptions();
+  options.observation_sigma_px = 0.0;
+  EXPECT_THROW(AdjustBundle(&empty, options), InvalidArgument);
+}
+
+TEST(BundleOptions, ParsersAcceptDocumentedNames) {
+  std::vector<std::string> params;
+  EXPECT_EQ(ParseIntrinsicsRefinement("focal,pp", &params),
+            IntrinsicsRefinement::kFocalPrincipalPoint);
+  EXPECT_EQ(ParseIntrinsicsRefinement("f,k1,k2", &params), IntrinsicsRefinement::kList);
+  EXPECT_EQ(params.size(), 3u);
+  EXPECT_FALSE(ParseIntrinsicsRefinement("f,k9", &params).has_value());
+  EXPECT_EQ(ParseLossType("Huber"), LossType::kHuber);
+  EXPECT_FALSE(ParseLossType("l1").has_value());
+  EXPECT_EQ(ParseLinearSolver("iterative_schur"), LinearSolverChoice::kIterativeSchur);
+}
+
+}  // namespace
+}  // namespace aerotri
