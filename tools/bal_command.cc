@@ -48,6 +48,8 @@ void RegisterBalCommand(CLI::App& app, CommandAction* run) {
                   "Stop when the relative cost decrease falls below this")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_flag("--solver-report", args->solver_report,
+                "Print Ceres' full solver report (timings per phase) on stderr");
   *run = nullptr;
   cmd->callback([args, run]() {
     *run = [args](ToolContext& ctx) { return RunBal(*args, ctx); };
@@ -73,6 +75,7 @@ int RunBal(const BalArgs& args, ToolContext& ctx) {
   options.refine_intrinsics = *refine;
   options.outlier_threshold_px = args.outlier_threshold_px;
   options.function_tolerance = args.function_tolerance;
+  options.keep_solver_report = args.solver_report;
   if (!ctx.quiet) {
     std::ostream* err = ctx.err;
     options.iteration_callback = [err](const IterationReport& it) {
@@ -90,6 +93,7 @@ int RunBal(const BalArgs& args, ToolContext& ctx) {
            std::to_string(ctx.ElapsedS()).substr(0, 5) + " s)");
 
   const BundleSummary summary = AdjustBundle(&model, options);
+  if (args.solver_report) *ctx.err << summary.solver_report << std::flush;
   if (!args.output.empty()) {
     WriteBalProblem(model, args.output);
     ctx.Info("wrote " + args.output);

@@ -29,6 +29,7 @@ struct BalArgs {
   std::string refine = "all";
   double outlier_threshold_px = 0.0;
   double function_tolerance = 1e-6;
+  bool solver_report = false;
 };
 void RegisterBalCommand(CLI::App& app, CommandAction* run);
 int RunBal(const BalArgs& args, ToolContext& ctx);

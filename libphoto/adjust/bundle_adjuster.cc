@@ -8,8 +8,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <memory>
 #include <sstream>
@@ -472,9 +470,6 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
 
   if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
-    if (std::getenv("AEROTRI_CERES_REPORT")) {
-      std::fprintf(stderr, "%s\n", result.ceres.FullReport().c_str());
-    }
   }
 
   for (size_t i = 0; i < num_images; ++i) {
@@ -690,6 +685,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     summary.converged = result.ceres.termination_type == ceres::CONVERGENCE;
     summary.setup_time_s += result.setup_s;
     summary.solve_time_s += result.ceres.total_time_in_seconds;
+    if (options.keep_solver_report) summary.solver_report += result.ceres.FullReport();
     summary.num_images = result.num_images;
     summary.num_points = result.num_points;
     summary.num_observations = result.num_observations;

@@ -89,6 +89,8 @@ struct BundleOptions {
   double weak_point_min_angle_deg = 2.0;
 
   std::function<void(const IterationReport&)> iteration_callback;
+  // Keep Ceres' FullReport() of every solve in BundleSummary::solver_report.
+  bool keep_solver_report = false;
 
   // Ceres-style validation: false with a message naming the option, its
   // value and the allowed range.
@@ -128,6 +130,8 @@ struct BundleSummary {
   double setup_time_s = 0.0;
   double solve_time_s = 0.0;
   double total_time_s = 0.0;
+
+  std::string solver_report;  // Ceres' full reports, when asked for
 
   std::vector<WeakImage> weak_images;
   int weak_points_small_angle = 0;
