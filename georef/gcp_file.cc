@@ -1,0 +1,150 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "georef/gcp_file.h"
+
+#include <charconv>
+#include <cmath>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+namespace {
+
+std::vector<std::string> SplitWhitespace(const std::string& line) {
+  std::vector<std::string> out;
+  std::istringstream in(line);
+  std::string token;
+  while (in >> token) out.push_back(token);
+  return out;
+}
+
+std::optional<double> ParseNumber(const std::string& token) {
+  double value = 0.0;
+  const char* begin = token.data();
+  const char* end = begin + token.size();
+  const auto [next, ec] = std::from_chars(begin, end, value);
+  if (ec != std::errc() || next != end || !std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
+std::string Trim(const std::string& s) {
+  const size_t a = s.find_first_not_of(" \t\r\n");
+  if (a == std::string::npos) return "";
+  const size_t b = s.find_last_not_of(" \t\r\n");
+  return s.substr(a, b - a + 1);
+}
+
+}  // namespace
+
+GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
+  const std::string text = ReadTextFile(path);
+  const std::string p = path.string();
+  GcpFile file;
+  file.path = p;
+  std::istringstream in(text);
+  std::string line;
+  int number = 0;
+  std::map<std::string, size_t> by_name;
+  const double shift = origin == PixelOrigin::kCorner ? 0.5 : 0.0;
+  static const char* kColumns = "'geo_x geo_y geo_z im_x im_y image_name [gcp_name]'";
+
+  while (std::getline(in, line)) {
+    ++number;
+    const std::string trimmed = Trim(line);
+    if (trimmed.empty() || trimmed[0] == '#') continue;
+    if (file.crs.empty()) {
+      file.crs = trimmed;
+      if (SplitWhitespace(trimmed).size() >= 6 && ParseNumber(SplitWhitespace(trimmed)[0])) {
+        throw ParseError(p, number, "expected a CRS on the first line (e.g. EPSG:32632), got "
+                                    "a measurement line");
+      }
+      continue;
+    }
+    const std::vector<std::string> cols = SplitWhitespace(trimmed);
+    if (cols.size() < 6) {
+      throw ParseError(p, number, "expected at least 6 columns " + std::string(kColumns) +
+                                      ", got " + std::to_string(cols.size()));
+    }
+    static const char* kNames[] = {"geo_x", "geo_y", "geo_z", "im_x", "im_y"};
+    double v[5];
+    for (int i = 0; i < 5; ++i) {
+      const auto value = ParseNumber(cols[i]);
+      if (!value) {
+        throw ParseError(p, number, std::string("expected a number for ") + kNames[i] +
+                                        " (column " + std::to_string(i + 1) + "), got '" +
+                                        cols[i] + "'");
+      }
+      v[i] = *value;
+    }
+    if (v[3] < 0.0 || v[4] < 0.0) {
+      throw ParseError(p, number, "expected pixel coordinates >= 0, got im_x " + cols[3] +
+                                      " im_y " + cols[4]);
+    }
+    const Eigen::Vector3d xyz(v[0], v[1], v[2]);
+    std::string name;
+    std::optional<double> sigma_h, sigma_v;
+    for (size_t c = 6; c < cols.size(); ++c) {
+      const std::string& extra = cols[c];
+      const size_t eq = extra.find('=');
+      if (eq != std::string::npos) {
+        const std::string key = extra.substr(0, eq);
+        if (key == "sigma_h" || key == "sigma_v") {
+          const auto value = ParseNumber(extra.substr(eq + 1));
+          if (!value || *value <= 0.0) {
+            throw ParseError(p, number, "expected a positive number of metres for " + key +
+                                            ", got '" + extra.substr(eq + 1) + "'");
+          }
+          (key == "sigma_h" ? sigma_h : sigma_v) = *value;
+        }
+        continue;
+      }
+      if (c == 6) name = extra;
+    }
+    if (name.empty()) {
+      std::ostringstream key;
+      key << std::setprecision(12) << "point@" << xyz.x() << "," << xyz.y() << "," << xyz.z();
+      name = key.str();
+    }
+    auto it = by_name.find(name);
+    if (it == by_name.end()) {
+      GroundPoint point;
+      point.name = name;
+      point.xyz = xyz;
+      point.first_line = number;
+      by_name[name] = file.points.size();
+      file.points.push_back(point);
+      it = by_name.find(name);
+    }
+    GroundPoint& point = file.points[it->second];
+    if ((point.xyz - xyz).norm() > 1e-6 * std::max(1.0, xyz.norm())) {
+      throw ParseError(p, number, "point '" + name + "' has other coordinates here than on line " +
+                                      std::to_string(point.first_line));
+    }
+    if (sigma_h) point.sigma_h_m = sigma_h;
+    if (sigma_v) point.sigma_v_m = sigma_v;
+    point.measurements.push_back({cols[5], Eigen::Vector2d(v[3] - shift, v[4] - shift), number});
+  }
+  if (file.crs.empty()) throw ParseError(p, 0, "empty file: expected a CRS on the first line");
+  return file;
+}
+
+void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path) {
+  WriteFileAtomically(path, [&](std::ostream& out) {
+    out << file.crs << "\n" << std::setprecision(12);
+    for (const GroundPoint& point : file.points) {
+      for (const GcpMeasurement& m : point.measurements) {
+        out << point.xyz.x() << " " << point.xyz.y() << " " << point.xyz.z() << " "
+            << std::setprecision(8) << m.xy_px.x() + 0.5 << " " << m.xy_px.y() + 0.5 << " "
+            << std::setprecision(12) << m.image << " " << point.name;
+        if (point.sigma_h_m) out << " sigma_h=" << *point.sigma_h_m;
+        if (point.sigma_v_m) out << " sigma_v=" << *point.sigma_v_m;
+        out << "\n";
+      }
+    }
+  });
+}
+
+}  // namespace aerotri

@@ -1,0 +1,59 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Ground control and check-point files in OpenDroneMap's gcp_list.txt format:
+//
+//   EPSG:32632                       <- first line: a CRS (anything PROJ takes)
+//   geo_x geo_y geo_z im_x im_y image_name [gcp_name] [extra ...]
+//
+// geo_x, geo_y are in the CRS's normalised axis order (easting, northing; or
+// longitude, latitude for a geographic CRS); geo_z is ellipsoidal for a 2D
+// CRS and orthometric for a compound one (EPSG:32632+5773). Blank lines and
+// lines starting with '#' are skipped. Extras may give the point's surveyed
+// standard deviations as `sigma_h=0.02 sigma_v=0.03` (metres); other extras
+// are ignored. Without a name, lines with identical coordinates are one point.
+//
+// Pixels: ODM, OpenSfM and COLMAP measure from the top-left corner of the
+// image, so the centre of the top-left pixel is (0.5, 0.5); aerotri puts it at
+// (0, 0). PixelOrigin::kCorner (the default) subtracts 0.5 on reading.
+//
+// Errors: ParseError "file:line: what was expected, got what".
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace aerotri {
+
+enum class PixelOrigin { kCorner, kCentre };
+
+struct GcpMeasurement {
+  std::string image;      // file name as written
+  Eigen::Vector2d xy_px;  // aerotri convention (centre of top-left pixel = 0, 0)
+  int line = 0;
+};
+
+struct GroundPoint {
+  std::string name;
+  Eigen::Vector3d xyz;  // in the file's CRS, normalised axis order
+  std::optional<double> sigma_h_m;
+  std::optional<double> sigma_v_m;
+  std::vector<GcpMeasurement> measurements;
+  int first_line = 0;
+};
+
+struct GcpFile {
+  std::string path;
+  std::string crs;  // the first line
+  std::vector<GroundPoint> points;
+};
+
+GcpFile ReadGcpFile(const std::filesystem::path& path,
+                    PixelOrigin origin = PixelOrigin::kCorner);
+
+// Writes points back in the same format (corner pixel origin), atomically.
+void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path);
+
+}  // namespace aerotri

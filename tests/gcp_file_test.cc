@@ -1,0 +1,96 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "georef/gcp_file.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "libphoto/base/error.h"
+#include "tests/test_util.h"
+
+namespace aerotri {
+namespace {
+
+void Write(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
+
+TEST(GcpFile, ReadsOdmFormatWithNamesSigmasAndComments) {
+  testing::TempDir dir;
+  Write(dir / "gcp_list.txt",
+        "EPSG:32632+5773\n"
+        "# surveyed 2026-05-02\n"
+        "384902.84 5150696.35 449.91 1024.5 768.5 IMG_0001.JPG GCP1 sigma_h=0.02 sigma_v=0.04\n"
+        "\n"
+        "384902.84 5150696.35 449.91 100 200.25 IMG_0002.JPG GCP1\n"
+        "384950.00 5150700.00 451.00 10 20 IMG_0002.JPG GCP2 some_extra\n"
+        "384990.00 5150710.00 452.00 30 40 IMG_0003.JPG\n");
+  const GcpFile file = ReadGcpFile(dir / "gcp_list.txt");
+  EXPECT_EQ(file.crs, "EPSG:32632+5773");
+  ASSERT_EQ(file.points.size(), 3u);
+  const GroundPoint& g1 = file.points[0];
+  EXPECT_EQ(g1.name, "GCP1");
+  ASSERT_EQ(g1.measurements.size(), 2u);
+  // Corner origin: (1024.5, 768.5) is the centre of pixel (1024, 768).
+  EXPECT_DOUBLE_EQ(g1.measurements[0].xy_px.x(), 1024.0);
+  EXPECT_DOUBLE_EQ(g1.measurements[0].xy_px.y(), 768.0);
+  EXPECT_EQ(g1.measurements[1].line, 5);
+  EXPECT_DOUBLE_EQ(*g1.sigma_h_m, 0.02);
+  EXPECT_DOUBLE_EQ(*g1.sigma_v_m, 0.04);
+  EXPECT_FALSE(file.points[1].sigma_h_m.has_value());
+  EXPECT_EQ(file.points[2].measurements[0].image, "IMG_0003.JPG");
+
+  const GcpFile centre = ReadGcpFile(dir / "gcp_list.txt", PixelOrigin::kCentre);
+  EXPECT_DOUBLE_EQ(centre.points[0].measurements[0].xy_px.x(), 1024.5);
+}
+
+TEST(GcpFile, WriteThenReadRoundTrips) {
+  testing::TempDir dir;
+  GcpFile file;
+  file.crs = "EPSG:32632";
+  GroundPoint p;
+  p.name = "A";
+  p.xyz = {384902.8374, 5150696.3462, 500.25};
+  p.sigma_h_m = 0.015;
+  p.measurements.push_back({"x.jpg", {10.25, 20.75}, 0});
+  file.points.push_back(p);
+  WriteGcpFile(file, dir / "out.txt");
+  const GcpFile again = ReadGcpFile(dir / "out.txt");
+  ASSERT_EQ(again.points.size(), 1u);
+  EXPECT_LT((again.points[0].xyz - p.xyz).norm(), 1e-6);
+  EXPECT_LT((again.points[0].measurements[0].xy_px - p.measurements[0].xy_px).norm(), 1e-9);
+  EXPECT_DOUBLE_EQ(*again.points[0].sigma_h_m, 0.015);
+}
+
+TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
+  struct Case {
+    std::string text;
+    int line;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"EPSG:32632\n1 2 3 4 5\n", 2, "expected at least 6 columns"},
+      {"EPSG:32632\n1 2 x 4 5 a.jpg\n", 2, "expected a number for geo_z (column 3), got 'x'"},
+      {"EPSG:32632\n\n1 2 3 -4 5 a.jpg\n", 3, "expected pixel coordinates >= 0"},
+      {"EPSG:32632\n1 2 3 4 5 a.jpg P sigma_h=-1\n", 2, "positive number of metres for sigma_h"},
+      {"EPSG:32632\n1 2 3 4 5 a.jpg P\n1 2 4 4 5 b.jpg P\n", 3, "other coordinates here than on line 2"},
+      {"1 2 3 4 5 a.jpg\n", 1, "expected a CRS on the first line"},
+      {"\n# only a comment\n", 0, "empty file"},
+  };
+  testing::TempDir dir;
+  for (const Case& c : cases) {
+    Write(dir / "gcp_list.txt", c.text);
+    try {
+      ReadGcpFile(dir / "gcp_list.txt");
+      ADD_FAILURE() << "accepted: " << c.text;
+    } catch (const ParseError& e) {
+      EXPECT_EQ(e.line(), c.line) << e.what();
+      EXPECT_NE(std::string(e.what()).find(c.message), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("gcp_list.txt"), std::string::npos);
+    }
+  }
+  EXPECT_THROW(ReadGcpFile(dir / "absent.txt"), IoError);
+}
+
+}  // namespace
+}  // namespace aerotri
