@@ -187,4 +187,10 @@ Geodetic Crs::ToGeodetic(const Eigen::Vector3d& xyz) const {
   return {out.xyz.y, out.xyz.x, out.xyz.z};
 }
 
+double Egm96Undulation(double lat_deg, double lon_deg) {
+  static const Crs egm96 = Crs::FromString("EPSG:4326+5773");
+  // Orthometric height of a point on the ellipsoid is -N.
+  return -egm96.FromGeodetic({lat_deg, lon_deg, 0.0}).z();
+}
+
 }  // namespace aerotri

@@ -53,4 +53,9 @@ class Crs {
   std::shared_ptr<Impl> impl_;
 };
 
+// EGM96 geoid undulation N (metres) at a position, through PROJ and the
+// egm96_15.gtx grid: ellipsoidal h = orthometric H + N. Throws CrsError when
+// the grid is missing.
+double Egm96Undulation(double lat_deg, double lon_deg);
+
 }  // namespace aerotri

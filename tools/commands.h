@@ -34,4 +34,28 @@ struct BalArgs {
 void RegisterBalCommand(CLI::App& app, CommandAction* run);
 int RunBal(const BalArgs& args, ToolContext& ctx);
 
+struct AdjustArgs {
+  std::string model_dir;
+  std::string images_dir;
+  std::string gcp;
+  std::string checkpoints;
+  std::string gps_csv;
+  std::string crs;
+  std::string output;
+  double gps_sigma_h_m = 2.0;
+  double gps_sigma_v_m = 4.0;
+  std::string gps_altitude = "egm96";
+  double gcp_sigma_h_m = 0.02;
+  double gcp_sigma_v_m = 0.03;
+  std::string gcp_pixel_origin = "corner";
+  std::string refine = "all";
+  std::string loss = "huber";
+  double loss_scale_px = 2.0;
+  double outlier_threshold_px = 4.0;
+  int threads = 0;
+  int max_iterations = 100;
+};
+void RegisterAdjustCommand(CLI::App& app, CommandAction* run);
+int RunAdjust(const AdjustArgs& args, ToolContext& ctx);
+
 }  // namespace aerotri

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
 
   CommandAction run;
   RegisterBalCommand(app, &run);
+  RegisterAdjustCommand(app, &run);
 
   try {
     app.parse(argc, argv);

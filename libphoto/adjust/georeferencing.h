@@ -1,0 +1,97 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Georeferenced adjustment of a sparse model: gauge and scale come from GPS
+// positions of the camera centres and from surveyed ground control points,
+// the adjustment runs in a local ENU frame (metres) tangent at the survey's
+// reference point, and accuracy is measured on independent check points.
+//
+//  1. Control and check points are converted from their file's CRS to WGS84
+//     geodetic through PROJ; the ENU origin is the mean GPS position (or the
+//     mean control point when there is no GPS).
+//  2. Control points are triangulated in the model's own frame; a robust
+//     similarity (Helmert) fit maps camera centres and control points onto
+//     their priors, so a model in any frame and scale converges.
+//  3. Bundle adjustment with GPS priors (horizontal / vertical sigmas) on the
+//     camera centres and surveyed priors on the control points; with three
+//     or more non-collinear priors no camera is held fixed.
+//  4. Check points never enter steps 2–3: afterwards they are triangulated
+//     from their image observations alone and compared with their surveyed
+//     coordinates in the output CRS.
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "georef/accuracy.h"
+#include "georef/crs.h"
+#include "georef/gcp_file.h"
+#include "georef/local_frame.h"
+#include "georef/similarity.h"
+#include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/base/progress.h"
+#include "libphoto/ingest/gps_sources.h"
+
+namespace aerotri {
+
+struct GeoreferenceOptions {
+  std::string output_crs;       // empty: the control file's CRS, else UTM
+  double gcp_sigma_h_m = 0.02;  // when the file gives none
+  double gcp_sigma_v_m = 0.03;
+  // Helmert inlier threshold (m); 0 picks 5x the largest prior sigma, at
+  // least 0.5 m.
+  double helmert_inlier_m = 0.0;
+  BundleOptions bundle;
+  ProgressCallback progress;
+};
+
+struct GroundPointResult {
+  std::string name;
+  PointRole role = PointRole::kControl;
+  bool solved = false;     // false: see why_not
+  std::string why_not;
+  int num_images = 0;      // measurements on images of the model
+  Eigen::Vector3d surveyed_crs = Eigen::Vector3d::Zero();  // output CRS
+  Eigen::Vector3d adjusted_crs = Eigen::Vector3d::Zero();
+  Eigen::Vector3d d_m = Eigen::Vector3d::Zero();  // adjusted − surveyed (m)
+  double reprojection_rms_px = 0.0;
+};
+
+struct CameraResult {
+  std::string name;
+  bool has_prior = false;
+  Eigen::Vector3d d_enu_m = Eigen::Vector3d::Zero();  // adjusted − GPS (E, N, U)
+  double sigma_h_m = 0.0;
+  double sigma_v_m = 0.0;
+};
+
+struct GeoreferenceReport {
+  std::string crs;       // as given or chosen
+  std::string crs_name;  // PROJ's name
+  std::string crs_source;  // "--crs", "control file", "UTM zone of the survey centre"
+  bool residuals_in_crs_units = true;  // false for a geographic CRS: ENU metres
+  Geodetic enu_origin;
+  int helmert_correspondences = 0;
+  int helmert_inliers = 0;
+  double helmert_rms_m = 0.0;
+  BundleSummary bundle;
+  std::vector<GroundPointResult> control;
+  std::vector<GroundPointResult> check;
+  AccuracyStats control_stats;
+  AccuracyStats check_stats;
+  std::vector<CameraResult> cameras;
+  std::vector<std::string> warnings;
+};
+
+// Adjusts model in place; on return it is in the ENU frame of
+// report.enu_origin, with control and check points appended as points of
+// role kControl / kCheck. gps maps image names to fixes. Throws
+// InvalidArgument when nothing can anchor the datum, CrsError for CRS
+// problems.
+GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
+                                         const std::map<std::string, GpsFix>& gps,
+                                         const GcpFile* control, const GcpFile* checks,
+                                         const GeoreferenceOptions& options);
+
+}  // namespace aerotri

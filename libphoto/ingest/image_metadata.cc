@@ -1,0 +1,140 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/ingest/image_metadata.h"
+
+#include <gdal_priv.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <memory>
+#include <mutex>
+#include <regex>
+#include <sstream>
+
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+namespace {
+
+void RegisterGdalOnce() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    GDALAllRegister();
+    CPLSetConfigOption("GDAL_PAM_ENABLED", "NO");  // never write .aux.xml beside inputs
+  });
+}
+
+// EXIF rationals print as "(46) (50) (33.3855)".
+std::vector<double> Rationals(const char* value) {
+  std::vector<double> out;
+  if (!value) return out;
+  std::string s(value);
+  for (char& c : s) {
+    if (c == '(' || c == ')') c = ' ';
+  }
+  std::istringstream in(s);
+  double v;
+  while (in >> v) out.push_back(v);
+  return out;
+}
+
+std::optional<double> First(const char* value) {
+  const auto v = Rationals(value);
+  if (v.empty() || !std::isfinite(v[0])) return std::nullopt;
+  return v[0];
+}
+
+std::optional<double> Dms(const char* value, const char* ref, char negative) {
+  const auto v = Rationals(value);
+  if (v.empty()) return std::nullopt;
+  double deg = v[0] + (v.size() > 1 ? v[1] / 60.0 : 0.0) + (v.size() > 2 ? v[2] / 3600.0 : 0.0);
+  if (ref && std::toupper(static_cast<unsigned char>(ref[0])) == negative) deg = -deg;
+  if (!std::isfinite(deg)) return std::nullopt;
+  return deg;
+}
+
+std::optional<double> XmpNumber(const std::string& xmp, const std::string& tag) {
+  // Attribute form drone-dji:Tag="+1.23" or element form <drone-dji:Tag>1.23<
+  const std::regex attr(tag + "=\"([-+0-9.eE]+)\"");
+  const std::regex elem("<" + tag + ">([-+0-9.eE]+)<");
+  std::smatch m;
+  if (std::regex_search(xmp, m, attr) || std::regex_search(xmp, m, elem)) {
+    try {
+      return std::stod(m[1].str());
+    } catch (...) {
+      return std::nullopt;
+    }
+  }
+  return std::nullopt;
+}
+
+std::string Text(const char* v) { return v ? std::string(v) : std::string(); }
+
+}  // namespace
+
+bool IsImageFileName(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff";
+}
+
+ImageMetadata ReadImageMetadata(const std::filesystem::path& path) {
+  RegisterGdalOnce();
+  CPLErrorReset();
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  std::unique_ptr<GDALDataset> ds(
+      static_cast<GDALDataset*>(GDALOpen(path.string().c_str(), GA_ReadOnly)));
+  CPLPopErrorHandler();
+  if (!ds) {
+    const std::string why = CPLGetLastErrorMsg();
+    throw IoError(path.string(), "cannot read as an image" + (why.empty() ? "" : " (" + why + ")"));
+  }
+  ImageMetadata m;
+  m.path = path.string();
+  m.width = ds->GetRasterXSize();
+  m.height = ds->GetRasterYSize();
+  if (m.width <= 0 || m.height <= 0 || ds->GetRasterCount() < 1) {
+    throw IoError(path.string(), "not an image with pixels");
+  }
+  auto item = [&](const char* key) { return ds->GetMetadataItem(key); };
+  m.make = Text(item("EXIF_Make"));
+  m.model = Text(item("EXIF_Model"));
+  m.datetime_original = Text(item("EXIF_DateTimeOriginal"));
+  m.lat_deg = Dms(item("EXIF_GPSLatitude"), item("EXIF_GPSLatitudeRef"), 'S');
+  m.lon_deg = Dms(item("EXIF_GPSLongitude"), item("EXIF_GPSLongitudeRef"), 'W');
+  if (m.lat_deg && std::abs(*m.lat_deg) > 90.0) m.lat_deg.reset();
+  if (m.lon_deg && std::abs(*m.lon_deg) > 180.0) m.lon_deg.reset();
+  m.gps_altitude_m = First(item("EXIF_GPSAltitude"));
+  if (m.gps_altitude_m) {
+    const std::string ref = Text(item("EXIF_GPSAltitudeRef"));
+    if (ref == "0x01" || ref == "1") *m.gps_altitude_m = -*m.gps_altitude_m;  // below sea level
+  }
+  m.gps_dop = First(item("EXIF_GPSDOP"));
+  m.focal_mm = First(item("EXIF_FocalLength"));
+  if (m.focal_mm && *m.focal_mm <= 0.0) m.focal_mm.reset();
+  m.focal_35mm = First(item("EXIF_FocalLengthIn35mmFilm"));
+  if (m.focal_35mm && *m.focal_35mm <= 0.0) m.focal_35mm.reset();
+  if (const auto res = First(item("EXIF_FocalPlaneXResolution")); res && *res > 0.0) {
+    const std::string unit = Text(item("EXIF_FocalPlaneResolutionUnit"));
+    const double per_mm = unit == "3" ? *res / 10.0 : unit == "4" ? *res / 1.0
+                          : unit == "5" ? *res / 1e-3 : *res / 25.4;  // 2 (inch) is the default
+    m.focal_plane_px_per_mm = per_mm;
+    if (const auto w = First(item("EXIF_PixelXDimension")); w && *w > 0) {
+      m.exif_pixel_width = static_cast<int>(*w);
+    }
+  }
+  if (char** xmp = ds->GetMetadata("xml:XMP"); xmp && xmp[0]) {
+    const std::string text(xmp[0]);
+    m.relative_altitude_m = XmpNumber(text, "drone-dji:RelativeAltitude");
+    m.gimbal_pitch_deg = XmpNumber(text, "drone-dji:GimbalPitchDegree");
+    m.gimbal_yaw_deg = XmpNumber(text, "drone-dji:GimbalYawDegree");
+    m.gimbal_roll_deg = XmpNumber(text, "drone-dji:GimbalRollDegree");
+    m.rtk_std_lat_m = XmpNumber(text, "drone-dji:RtkStdLat");
+    m.rtk_std_lon_m = XmpNumber(text, "drone-dji:RtkStdLon");
+    m.rtk_std_hgt_m = XmpNumber(text, "drone-dji:RtkStdHgt");
+  }
+  return m;
+}
+
+}  // namespace aerotri

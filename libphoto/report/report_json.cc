@@ -1,0 +1,130 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/report/report_json.h"
+
+namespace aerotri {
+namespace {
+
+nlohmann::json PointsJson(const std::vector<GroundPointResult>& points, const AccuracyStats& s,
+                          bool crs_units) {
+  nlohmann::json j;
+  j["count"] = s.count;
+  j["rmse_x_m"] = s.rmse_x_m;
+  j["rmse_y_m"] = s.rmse_y_m;
+  j["rmse_z_m"] = s.rmse_z_m;
+  j["rmse_h_m"] = s.rmse_h_m;
+  j["rmse_3d_m"] = s.rmse_3d_m;
+  j["mean_x_m"] = s.mean_x_m;
+  j["mean_y_m"] = s.mean_y_m;
+  j["mean_z_m"] = s.mean_z_m;
+  j["max_h_m"] = s.max_h_m;
+  j["max_abs_z_m"] = s.max_abs_z_m;
+  j["residuals_frame"] = crs_units ? "output CRS (adjusted - surveyed)"
+                                   : "local ENU metres (adjusted - surveyed); the CRS is geographic";
+  j["points"] = nlohmann::json::array();
+  for (const GroundPointResult& p : points) {
+    nlohmann::json pj;
+    pj["name"] = p.name;
+    pj["images"] = p.num_images;
+    pj["solved"] = p.solved;
+    if (p.solved) {
+      pj["dx_m"] = p.d_m.x();
+      pj["dy_m"] = p.d_m.y();
+      pj["dz_m"] = p.d_m.z();
+      pj["reprojection_rms_px"] = p.reprojection_rms_px;
+      pj["surveyed"] = {p.surveyed_crs.x(), p.surveyed_crs.y(), p.surveyed_crs.z()};
+      pj["adjusted"] = {p.adjusted_crs.x(), p.adjusted_crs.y(), p.adjusted_crs.z()};
+    } else {
+      pj["why_not"] = p.why_not;
+    }
+    j["points"].push_back(pj);
+  }
+  return j;
+}
+
+}  // namespace
+
+nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& model) {
+  nlohmann::json j;
+  j["images"] = s.num_images;
+  j["points"] = s.num_points;
+  j["observations"] = s.num_observations;
+  j["gps_priors"] = s.num_gps_priors;
+  j["gcp_priors"] = s.num_gcp_priors;
+  j["initial_cost"] = s.initial_cost;
+  j["final_cost"] = s.final_cost;
+  j["initial_rms_px"] = s.initial_rms_px;
+  j["final_rms_px"] = s.final_rms_px;
+  j["iterations"] = s.iterations;
+  j["termination"] = s.termination;
+  j["converged"] = s.converged;
+  j["linear_solver"] = s.linear_solver;
+  j["datum"] = s.gauge;
+  j["outliers_removed"] = s.outliers_removed;
+  j["observations_behind_camera"] = s.num_behind_camera_final;
+  j["weak_points_narrow_rays"] = s.weak_points_small_angle;
+  j["weak_images"] = nlohmann::json::array();
+  for (const WeakImage& w : s.weak_images) {
+    j["weak_images"].push_back({{"name", w.name}, {"observations", w.observations}});
+  }
+  j["time_s"] = s.total_time_s;
+  j["refined_intrinsics"] = s.refined_intrinsics;
+  j["intrinsics"] = nlohmann::json::array();
+  for (const Camera& camera : model.cameras) {
+    nlohmann::json c;
+    c["camera"] = camera.id;
+    c["model"] = camera.info().name;
+    c["width"] = camera.width;
+    c["height"] = camera.height;
+    nlohmann::json params;
+    for (int i = 0; i < camera.info().num_params(); ++i) {
+      params[camera.info().param_names[i]] = camera.params[i];
+    }
+    c["params"] = params;
+    j["intrinsics"].push_back(c);
+  }
+  return j;
+}
+
+nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseModel& model) {
+  nlohmann::json j;
+  j["crs"] = r.crs;
+  j["crs_name"] = r.crs_name;
+  j["crs_source"] = r.crs_source;
+  j["enu_origin"] = {{"lat_deg", r.enu_origin.lat_deg},
+                     {"lon_deg", r.enu_origin.lon_deg},
+                     {"h_m", r.enu_origin.h_m},
+                     {"height_reference", "WGS84 ellipsoid"}};
+  j["control_points"] = PointsJson(r.control, r.control_stats, r.residuals_in_crs_units);
+  j["check_points"] = PointsJson(r.check, r.check_stats, r.residuals_in_crs_units);
+  const AsprsStatements check = AsprsStatements::From(r.check_stats);
+  j["asprs"] = {
+      {"based_on", r.check_stats.count > 0 ? "check points" : "no check points"},
+      {"edition_2014",
+       {{"horizontal_accuracy_95_m", check.horizontal_accuracy_95_m},
+        {"nva_95_m", check.nva_95_m},
+        {"note", "horizontal 95% = 1.7308 RMSE_r, NVA 95% = 1.96 RMSE_z"}}},
+      {"edition_2023",
+       {{"rmse_h_m", check.rmse_h_m}, {"rmse_v_m", check.rmse_v_m}, {"rmse_3d_m", check.rmse_3d_m}}}};
+  j["cameras"] = nlohmann::json::array();
+  for (const CameraResult& c : r.cameras) {
+    nlohmann::json cj;
+    cj["name"] = c.name;
+    cj["gps_prior"] = c.has_prior;
+    if (c.has_prior) {
+      cj["de_m"] = c.d_enu_m.x();
+      cj["dn_m"] = c.d_enu_m.y();
+      cj["du_m"] = c.d_enu_m.z();
+      cj["sigma_h_m"] = c.sigma_h_m;
+      cj["sigma_v_m"] = c.sigma_v_m;
+    }
+    j["cameras"].push_back(cj);
+  }
+  j["adjustment"] = BundleSummaryJson(r.bundle, model);
+  j["adjustment"]["helmert"] = {{"correspondences", r.helmert_correspondences},
+                                {"inliers", r.helmert_inliers},
+                                {"rms_m", r.helmert_rms_m}};
+  j["warnings"] = r.warnings;
+  return j;
+}
+
+}  // namespace aerotri

@@ -1,0 +1,171 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Georeferenced adjustment on a synthetic survey with known truth at a real
+// location (46.5 N, 7.5 E; UTM 32N): GPS sigma 2 m horizontal / 4 m vertical,
+// 8 control points with 1 cm survey noise, 6 check points, 0.3 px image noise.
+#include "libphoto/adjust/georeferencing.h"
+
+#include <gtest/gtest.h>
+
+#include "libphoto/base/error.h"
+#include "libphoto/simulate/synthetic_georef.h"
+#include "tests/test_util.h"
+
+namespace aerotri {
+namespace {
+
+SyntheticSurveyOptions SurveyOptions(std::uint32_t seed) {
+  SyntheticSurveyOptions o;
+  o.seed = seed;
+  o.area_width_m = 200.0;
+  o.area_height_m = 150.0;
+  o.num_tie_points = 1500;
+  o.pixel_noise_px = 0.3;
+  o.num_control_points = 8;
+  o.num_check_points = 6;
+  return o;
+}
+
+// The model as another tool would hand it over: an arbitrary frame and scale
+// and a rough camera (focal 3 % off, no distortion).
+SparseModel ArbitraryFrame(SparseModel model, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Similarity s;
+  s.scale = 0.04 + 0.01 * std::abs(g(rng));
+  s.rotation = Eigen::Quaterniond(
+      Eigen::AngleAxisd(3.0 * g(rng), Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized()));
+  s.translation = Eigen::Vector3d(10 * g(rng), 10 * g(rng), 10 * g(rng));
+  for (Image& image : model.images) {
+    image.pose.centre_in_world = s.Apply(image.pose.centre_in_world);
+    image.pose.cam_from_world = (image.pose.cam_from_world * s.rotation.conjugate()).normalized();
+  }
+  for (Point& point : model.points) point.position = s.Apply(point.position);
+  testing::Perturb(&model, rng, 0.0005, 0.05, 0.0005, 0.03);
+  for (Camera& c : model.cameras) {
+    for (int i = 3; i < 8; ++i) c.params[i] = 0.0;
+  }
+  return model;
+}
+
+GeoreferenceOptions Options() {
+  GeoreferenceOptions o;
+  o.output_crs = "EPSG:32632";
+  o.gcp_sigma_h_m = 0.01;
+  o.gcp_sigma_v_m = 0.01;
+  o.bundle.loss = LossType::kHuber;
+  o.bundle.loss_scale_px = 2.0;
+  return o;
+}
+
+TEST(Georeferencing, ControlPointsBringCheckPointsToCentimetres) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(21), {});
+  SparseModel model = ArbitraryFrame(scene.tie_model, 21);
+  const GeoreferenceReport report =
+      GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, Options());
+  SCOPED_TRACE(report.bundle.BriefReport());
+  EXPECT_NE(report.bundle.gauge.find("datum from priors"), std::string::npos);
+  EXPECT_EQ(report.control_stats.count, 8);
+  ASSERT_EQ(report.check_stats.count, 6);
+  // Each check point is triangulated from ~10 rays of 0.3 px (0.8 cm at this
+  // GSD) and sits in a datum fixed by 8 points of 1 cm: expect ~0.5-1.5 cm.
+  EXPECT_GT(report.check_stats.rmse_3d_m, 0.002);
+  EXPECT_LT(report.check_stats.rmse_3d_m, 0.04);
+  EXPECT_LT(report.check_stats.rmse_h_m, 0.03);
+  // Control points fit their survey to about its noise.
+  EXPECT_LT(report.control_stats.rmse_3d_m, 0.03);
+  EXPECT_LT(report.bundle.final_rms_px, 1.05 * 0.3 * std::sqrt(2.0));
+  // Self-calibration finds the lens (truth f 3000, k1 -0.08).
+  EXPECT_NEAR(model.cameras[0].params[0], 3000.0, 3.0);
+  EXPECT_NEAR(model.cameras[0].params[3], -0.08, 0.005);
+}
+
+TEST(Georeferencing, GpsAloneStaysAtTheGpsLevel) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(22), {});
+  SparseModel model = ArbitraryFrame(scene.tie_model, 22);
+  const GeoreferenceReport report =
+      GeoreferenceAndAdjust(&model, scene.gps, nullptr, &scene.checks, Options());
+  SCOPED_TRACE(report.bundle.BriefReport());
+  EXPECT_EQ(report.control_stats.count, 0);
+  ASSERT_EQ(report.check_stats.count, 6);
+  // The datum is an average of ~60 fixes of 2 m / 4 m: a shift of a few
+  // decimetres, not centimetres and not metres (scale and tilt add a little).
+  EXPECT_GT(report.check_stats.rmse_3d_m, 0.1);
+  EXPECT_LT(report.check_stats.rmse_3d_m, 2.5);
+  // The camera residuals against GPS look like the GPS noise.
+  double sum_h = 0.0;
+  for (const CameraResult& c : report.cameras) sum_h += c.d_enu_m.head<2>().squaredNorm();
+  const double rms_h = std::sqrt(sum_h / (2.0 * report.cameras.size()));
+  EXPECT_GT(rms_h, 1.4);
+  EXPECT_LT(rms_h, 2.6);
+}
+
+TEST(Georeferencing, ASimilarityOfTheInitialGuessDoesNotChangeTheResult) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(23), {});
+  const SparseModel base = ArbitraryFrame(scene.tie_model, 23);
+  GeoreferenceOptions options = Options();
+  options.bundle.function_tolerance = 1e-14;
+  options.bundle.parameter_tolerance = 1e-14;
+  options.bundle.gradient_tolerance = 1e-14;
+  options.bundle.max_iterations = 200;
+  options.bundle.outlier_threshold_px = 0.0;
+
+  SparseModel a = base;
+  const GeoreferenceReport ra = GeoreferenceAndAdjust(&a, scene.gps, &scene.control, &scene.checks, options);
+  // Same model, another frame and scale.
+  SparseModel b = base;
+  Similarity s;
+  s.scale = 7.3;
+  s.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, -1).normalized()));
+  s.translation = {500.0, -20.0, 3.0};
+  for (Image& image : b.images) {
+    image.pose.centre_in_world = s.Apply(image.pose.centre_in_world);
+    image.pose.cam_from_world = (image.pose.cam_from_world * s.rotation.conjugate()).normalized();
+  }
+  for (Point& point : b.points) point.position = s.Apply(point.position);
+  const GeoreferenceReport rb = GeoreferenceAndAdjust(&b, scene.gps, &scene.control, &scene.checks, options);
+
+  double worst = 0.0;
+  for (size_t i = 0; i < a.images.size(); ++i) {
+    worst = std::max(worst, (a.images[i].pose.centre_in_world - b.images[i].pose.centre_in_world).norm());
+  }
+  EXPECT_LT(worst, 1e-5) << "camera centres differ by up to " << worst << " m";
+  EXPECT_NEAR(ra.check_stats.rmse_3d_m, rb.check_stats.rmse_3d_m, 1e-6);
+  EXPECT_NEAR(a.cameras[0].params[0], b.cameras[0].params[0], 1e-4);
+}
+
+TEST(Georeferencing, RefusesWhenNothingAnchorsTheDatum) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(24), {});
+  SparseModel model = scene.tie_model;
+  EXPECT_THROW(GeoreferenceAndAdjust(&model, {}, nullptr, &scene.checks, Options()),
+               InvalidArgument);
+}
+
+TEST(Georeferencing, CompoundCrsReportsGeoidHeights) {
+  SyntheticGeorefOptions geo;
+  geo.crs = "EPSG:32632+5773";
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(25), geo);
+  SparseModel model = ArbitraryFrame(scene.tie_model, 25);
+  GeoreferenceOptions options = Options();
+  options.output_crs = "";  // take the control file's
+  const GeoreferenceReport report =
+      GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, options);
+  EXPECT_EQ(report.crs, "EPSG:32632+5773");
+  EXPECT_EQ(report.crs_source, "control file");
+  EXPECT_LT(report.check_stats.rmse_3d_m, 0.04);
+  // Orthometric heights: the EGM96 undulation here is 50.09 m
+  // (echo "46.5 7.5 0" | cs2cs EPSG:4979 EPSG:4326+5773 gives -50.0934).
+  ASSERT_FALSE(report.check.empty());
+  const LocalFrame frame(geo.origin);
+  for (size_t i = 0; i < report.check.size(); ++i) {
+    const Point* truth = nullptr;
+    for (const Point& p : scene.survey.truth.points) {
+      if (p.name == report.check[i].name) truth = &p;
+    }
+    ASSERT_NE(truth, nullptr);
+    const double h = frame.GeodeticFromEnu(truth->position).h_m;
+    EXPECT_NEAR(report.check[i].surveyed_crs.z(), h - 50.09, 0.05) << report.check[i].name;
+  }
+}
+
+}  // namespace
+}  // namespace aerotri

@@ -1,0 +1,158 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// aerotri adjust: georeference an existing reconstruction (COLMAP text model)
+// with GPS and ground control, self-calibrating, and report accuracy on check
+// points.
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include "georef/gcp_file.h"
+#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
+#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/io/colmap_text.h"
+#include "libphoto/report/report_json.h"
+#include "tools/commands.h"
+
+namespace aerotri {
+namespace fs = std::filesystem;
+
+void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
+  auto a = std::make_shared<AdjustArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "adjust",
+      "Georeference and adjust an existing reconstruction (COLMAP text model, any frame and "
+      "scale) with GPS priors and ground control; writes OUTPUT/model (COLMAP text, local ENU "
+      "metres) and OUTPUT/report.json with check-point accuracy");
+  cmd->add_option("--model", a->model_dir, "COLMAP text model folder (cameras.txt, images.txt, points3D.txt)")
+      ->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--images", a->images_dir, "Folder of the model's images, for their EXIF GPS")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--gcp", a->gcp, "Ground control points, OpenDroneMap gcp_list.txt format");
+  cmd->add_option("--checkpoints", a->checkpoints,
+                  "Check points (same format); never used in the adjustment");
+  cmd->add_option("--gps-csv", a->gps_csv,
+                  "Camera positions name,lat,lon,alt[,sigma_h,sigma_v] (degrees, metres); "
+                  "overrides EXIF");
+  cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal sigma (metres)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical sigma (metres)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gps-altitude", a->gps_altitude,
+                  "Reference of EXIF / CSV GPS altitudes: egm96 (EXIF's 'above sea level') or "
+                  "ellipsoid (WGS84)")
+      ->check(CLI::IsMember({"egm96", "ellipsoid"}))->capture_default_str();
+  cmd->add_option("--gcp-sigma-h", a->gcp_sigma_h_m,
+                  "Control point horizontal sigma (metres) when the file gives none")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m,
+                  "Control point vertical sigma (metres) when the file gives none")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin,
+                  "Pixel convention of GCP files: corner (ODM/COLMAP: top-left pixel centre at "
+                  "0.5, 0.5) or centre (at 0, 0)")
+      ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
+  cmd->add_option("--crs", a->crs,
+                  "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
+                  "file's CRS, else the UTM zone of the survey centre");
+  cmd->add_option("--refine", a->refine, "Intrinsics to refine: none, focal, focal,pp, all, or a list")
+      ->capture_default_str();
+  cmd->add_option("--loss", a->loss, "Robust loss on reprojection residuals")
+      ->check(CLI::IsMember({"none", "huber", "cauchy", "tukey"}))->capture_default_str();
+  cmd->add_option("--loss-scale", a->loss_scale_px, "Robust loss scale (pixels)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--outlier-threshold", a->outlier_threshold_px,
+                  "Reject observations above this reprojection error (pixels) and re-solve; 0 = off")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--threads", a->threads, "Threads (0 = all cores)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--max-iterations", a->max_iterations, "Maximum solver iterations per round")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--output,-o", a->output, "Output folder")->required();
+  cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunAdjust(*a, ctx); }; });
+}
+
+int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
+  const fs::path output(args.output);
+  if (fs::exists(output) && fs::equivalent(output, args.model_dir)) {
+    throw InvalidArgument("--output must differ from --model: inputs are never modified");
+  }
+  if (args.images_dir.empty() && args.gps_csv.empty() && args.gcp.empty()) {
+    throw InvalidArgument("nothing to georeference with: give --images (EXIF GPS), --gps-csv "
+                          "or --gcp");
+  }
+  GeoreferenceOptions options;
+  options.output_crs = args.crs;
+  options.gcp_sigma_h_m = args.gcp_sigma_h_m;
+  options.gcp_sigma_v_m = args.gcp_sigma_v_m;
+  options.progress = ctx.Progress("adjust");
+  BundleOptions& bundle = options.bundle;
+  const auto loss = ParseLossType(args.loss);
+  const auto refine = ParseIntrinsicsRefinement(args.refine, &bundle.refine_params);
+  if (!loss) throw InvalidArgument("--loss: unknown loss '" + args.loss + "'");
+  if (!refine) {
+    throw InvalidArgument("--refine: expected none, focal, focal,pp, all or a list of f, cx, "
+                          "cy, k1, k2, k3, p1, p2; got '" + args.refine + "'");
+  }
+  bundle.loss = *loss;
+  bundle.loss_scale_px = args.loss_scale_px;
+  bundle.refine_intrinsics = *refine;
+  bundle.outlier_threshold_px = args.outlier_threshold_px;
+  bundle.num_threads = args.threads;
+  bundle.max_iterations = args.max_iterations;
+
+  ctx.Info("reading model " + args.model_dir);
+  SparseModel model = ReadColmapText(args.model_dir);
+  ctx.Info("model: " + std::to_string(model.cameras.size()) + " cameras, " +
+           std::to_string(model.images.size()) + " images, " +
+           std::to_string(model.points.size()) + " points, " +
+           std::to_string(model.observations.size()) + " observations");
+
+  const AltitudeReference reference =
+      args.gps_altitude == "ellipsoid" ? AltitudeReference::kEllipsoid : AltitudeReference::kEgm96;
+  std::map<std::string, GpsFix> gps;
+  std::vector<std::string> warnings;
+  if (!args.images_dir.empty()) {
+    std::vector<std::string> names;
+    for (const Image& image : model.images) names.push_back(image.name);
+    gps = GpsFromImages(names, args.images_dir, reference, args.gps_sigma_h_m, args.gps_sigma_v_m,
+                        &warnings);
+    ctx.Info("EXIF GPS: " + std::to_string(gps.size()) + " of " +
+             std::to_string(model.images.size()) + " images");
+  }
+  if (!args.gps_csv.empty()) {
+    const auto csv = ReadGpsCsv(args.gps_csv, reference, args.gps_sigma_h_m, args.gps_sigma_v_m);
+    for (const auto& [name, fix] : csv) gps[name] = fix;
+    ctx.Info("GPS CSV: " + std::to_string(csv.size()) + " positions (override EXIF)");
+  }
+  const PixelOrigin origin =
+      args.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
+  std::optional<GcpFile> control, checks;
+  if (!args.gcp.empty()) control = ReadGcpFile(args.gcp, origin);
+  if (!args.checkpoints.empty()) checks = ReadGcpFile(args.checkpoints, origin);
+
+  GeoreferenceReport report = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
+                                                    checks ? &*checks : nullptr, options);
+  report.warnings.insert(report.warnings.begin(), warnings.begin(), warnings.end());
+  for (const std::string& w : report.warnings) ctx.Warn(w);
+
+  WriteColmapText(model, output / "model");
+  nlohmann::json json = GeoreferenceReportJson(report, model);
+  WriteTextFileAtomically(output / "report.json", json.dump(2) + "\n");
+  ctx.Info(report.bundle.BriefReport());
+  ctx.Info("wrote " + (output / "model").string() + " and " + (output / "report.json").string());
+
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "crs=%s final_rms_px=%.4f control_count=%d control_rmse_3d_m=%.4f "
+                "check_count=%d check_rmse_h_m=%.4f check_rmse_v_m=%.4f check_rmse_3d_m=%.4f\n",
+                report.crs.c_str(), report.bundle.final_rms_px, report.control_stats.count,
+                report.control_stats.rmse_3d_m, report.check_stats.count,
+                report.check_stats.rmse_h_m, report.check_stats.rmse_z_m,
+                report.check_stats.rmse_3d_m);
+  *ctx.out << line << std::flush;
+  return 0;
+}
+
+}  // namespace aerotri
