@@ -58,4 +58,32 @@ struct AdjustArgs {
 void RegisterAdjustCommand(CLI::App& app, CommandAction* run);
 int RunAdjust(const AdjustArgs& args, ToolContext& ctx);
 
+struct SimulateArgs {
+  std::string output;
+  unsigned seed = 1;
+  int width = 1000;
+  int height = 750;
+  double focal_px = 800.0;
+  double area_width_m = 120.0;
+  double area_height_m = 90.0;
+  double flight_height_m = 60.0;
+  double forward_overlap = 0.75;
+  double side_overlap = 0.65;
+  double relief_m = 12.0;
+  double gps_sigma_h_m = 2.0;
+  double gps_sigma_v_m = 4.0;
+  int control = 8;
+  int checks = 6;
+  double gcp_noise_m = 0.01;
+  double click_noise_px = 0.3;
+  int tie_points = 3000;
+  double tie_noise_px = 0.3;
+  std::string origin = "46.5,7.5,500";
+  std::string crs = "EPSG:32632";
+  bool no_images = false;
+  int jpeg_quality = 88;
+};
+void RegisterSimulateCommand(CLI::App& app, CommandAction* run);
+int RunSimulate(const SimulateArgs& args, ToolContext& ctx);
+
 }  // namespace aerotri

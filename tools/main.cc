@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   CommandAction run;
   RegisterBalCommand(app, &run);
   RegisterAdjustCommand(app, &run);
+  RegisterSimulateCommand(app, &run);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,137 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/simulate/render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <thread>
+
+#include "libphoto/simulate/synthetic_survey.h"
+
+namespace aerotri {
+namespace {
+
+// Integer hash to [0, 1) (a 2D variant of the PCG output permutation).
+double Hash(std::int64_t x, std::int64_t y, std::uint32_t salt) {
+  std::uint64_t h = static_cast<std::uint64_t>(x) * 0x9E3779B97F4A7C15ULL ^
+                    (static_cast<std::uint64_t>(y) + 0x632BE59BD9B4E019ULL + salt) * 0xC2B2AE3D27D4EB4FULL;
+  h ^= h >> 29;
+  h *= 0xBF58476D1CE4E5B9ULL;
+  h ^= h >> 32;
+  return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0);
+}
+
+double Smooth(double t) { return t * t * (3.0 - 2.0 * t); }
+
+// Value noise in [0, 1] with the given wavelength (m).
+double ValueNoise(double x, double y, double wavelength, std::uint32_t salt) {
+  const double fx = x / wavelength, fy = y / wavelength;
+  const double x0 = std::floor(fx), y0 = std::floor(fy);
+  const double tx = Smooth(fx - x0), ty = Smooth(fy - y0);
+  const auto ix = static_cast<std::int64_t>(x0), iy = static_cast<std::int64_t>(y0);
+  const double a = Hash(ix, iy, salt), b = Hash(ix + 1, iy, salt);
+  const double c = Hash(ix, iy + 1, salt), d = Hash(ix + 1, iy + 1, salt);
+  return (a + (b - a) * tx) * (1 - ty) + (c + (d - c) * tx) * ty;
+}
+
+}  // namespace
+
+Eigen::Vector3d GroundAlbedo(double e, double n, const std::vector<GroundTarget>& targets) {
+  for (const GroundTarget& t : targets) {
+    const double dx = e - t.east_north.x(), dy = n - t.east_north.y();
+    const double half = 0.5 * t.size_m;
+    if (std::abs(dx) <= half && std::abs(dy) <= half) {
+      // A white border frame then a 2x2 checker: the centre is a sharp corner.
+      if (std::abs(dx) > 0.8 * half || std::abs(dy) > 0.8 * half) return {0.95, 0.95, 0.95};
+      return ((dx >= 0) == (dy >= 0)) ? Eigen::Vector3d(0.05, 0.05, 0.05)
+                                      : Eigen::Vector3d(0.95, 0.95, 0.95);
+    }
+  }
+  // Fields and soil at large scale, detail at every scale below.
+  const double field = ValueNoise(e, n, 40.0, 1);
+  const double moisture = ValueNoise(e, n, 17.0, 2);
+  Eigen::Vector3d base = (1.0 - field) * Eigen::Vector3d(0.32, 0.45, 0.18) +  // grass
+                         field * Eigen::Vector3d(0.55, 0.45, 0.32);            // soil
+  base *= 0.75 + 0.5 * moisture;
+  double detail = 0.0, weight = 0.0;
+  double amp = 1.0;
+  for (double w = 6.4; w >= 0.1; w *= 0.5) {
+    detail += amp * ValueNoise(e, n, w, 10 + static_cast<std::uint32_t>(w * 100));
+    weight += amp;
+    amp *= 0.8;
+  }
+  detail /= weight;  // ~[0.2, 0.8]
+  // Scattered stones: dark or bright blobs ~0.3-0.8 m on a jittered 2.5 m grid.
+  const double cell = 2.5;
+  const auto cx = static_cast<std::int64_t>(std::floor(e / cell));
+  const auto cy = static_cast<std::int64_t>(std::floor(n / cell));
+  double blob = 0.0;
+  for (std::int64_t j = cy - 1; j <= cy + 1; ++j) {
+    for (std::int64_t i = cx - 1; i <= cx + 1; ++i) {
+      if (Hash(i, j, 77) > 0.55) continue;
+      const double px = (i + Hash(i, j, 78)) * cell, py = (j + Hash(i, j, 79)) * cell;
+      const double r = 0.15 + 0.3 * Hash(i, j, 80);
+      const double d2 = ((e - px) * (e - px) + (n - py) * (n - py)) / (r * r);
+      if (d2 < 1.0) blob += (Hash(i, j, 81) > 0.5 ? 0.5 : -0.5) * (1.0 - d2);
+    }
+  }
+  const double shade = std::clamp(0.35 + 1.1 * detail + blob, 0.05, 1.6);
+  return (base * shade).cwiseMin(1.0).cwiseMax(0.0);
+}
+
+std::optional<Eigen::Vector3d> IntersectTerrain(const Eigen::Vector3d& c, const Eigen::Vector3d& d,
+                                                double relief_m) {
+  if (d.z() >= -1e-6) return std::nullopt;
+  double z = TerrainHeight(c.x(), c.y(), relief_m);
+  Eigen::Vector3d x = c;
+  for (int it = 0; it < 30; ++it) {
+    const double t = (z - c.z()) / d.z();
+    x = c + t * d;
+    const double z_new = TerrainHeight(x.x(), x.y(), relief_m);
+    if (std::abs(z_new - z) < 1e-5) return Eigen::Vector3d(x.x(), x.y(), z_new);
+    z = z_new;
+  }
+  return std::nullopt;
+}
+
+cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions& options) {
+  cv::Mat image(camera.height, camera.width, CV_8UC3);
+  const int ss = std::max(1, options.supersample);
+  const Eigen::Matrix3d world_from_cam = pose.cam_from_world.conjugate().toRotationMatrix();
+  const unsigned threads = options.num_threads > 0 ? options.num_threads
+                                                   : std::max(1u, std::thread::hardware_concurrency());
+  auto render_rows = [&](int first, int step) {
+    std::mt19937 rng(options.seed * 7919u + first);
+    std::normal_distribution<double> noise(0.0, options.noise_dn);
+    for (int y = first; y < camera.height; y += step) {
+      for (int x = 0; x < camera.width; ++x) {
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        int n = 0;
+        for (int sy = 0; sy < ss; ++sy) {
+          for (int sx = 0; sx < ss; ++sx) {
+            const Eigen::Vector2d xy(x - 0.5 + (sx + 0.5) / ss, y - 0.5 + (sy + 0.5) / ss);
+            const auto ray = camera.RayFromImage(xy);
+            if (!ray) continue;
+            const auto ground = IntersectTerrain(pose.centre_in_world, world_from_cam * *ray,
+                                                 options.relief_m);
+            if (!ground) continue;
+            sum += GroundAlbedo(ground->x(), ground->y(), options.targets);
+            ++n;
+          }
+        }
+        const Eigen::Vector3d rgb = n > 0 ? Eigen::Vector3d(sum / n) : Eigen::Vector3d(0.6, 0.7, 0.9);
+        cv::Vec3b& px = image.at<cv::Vec3b>(y, x);
+        for (int k = 0; k < 3; ++k) {
+          px[2 - k] = cv::saturate_cast<std::uint8_t>(255.0 * rgb[k] + noise(rng));
+        }
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(render_rows, static_cast<int>(t), static_cast<int>(threads));
+  render_rows(0, static_cast<int>(threads));
+  for (auto& t : pool) t.join();
+  return image;
+}
+
+}  // namespace aerotri

@@ -1,0 +1,175 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/simulate/survey_writer.h"
+
+#include <cmath>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+
+#include "georef/crs.h"
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
+#include "libphoto/export/raster.h"
+#include "libphoto/io/colmap_text.h"
+#include "libphoto/io/image_writer.h"
+#include "libphoto/simulate/render.h"
+
+namespace aerotri {
+namespace fs = std::filesystem;
+
+namespace {
+
+// Height of the terrain in the CRS at CRS position (x, y).
+double TerrainInCrs(const Crs& crs, const LocalFrame& frame, double x, double y, double relief) {
+  double z = frame.origin().h_m;
+  for (int it = 0; it < 3; ++it) {
+    const Eigen::Vector3d enu = frame.EnuFromGeodetic(crs.ToGeodetic({x, y, z}));
+    const Eigen::Vector3d ground(enu.x(), enu.y(), TerrainHeight(enu.x(), enu.y(), relief));
+    z = crs.FromGeodetic(frame.GeodeticFromEnu(ground)).z();
+  }
+  return z;
+}
+
+}  // namespace
+
+void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir) {
+  fs::create_directories(dir);
+  ReportProgress(options.progress, 0.0, "simulating the survey");
+  SyntheticGeoref scene = MakeSyntheticGeoref(options.survey, options.georef);
+  const SparseModel& truth = scene.survey.truth;
+  const LocalFrame frame(options.georef.origin);
+  const Crs crs = Crs::FromString(options.georef.crs);
+  std::mt19937 rng(options.survey.seed + 101);
+  std::normal_distribution<double> g(0.0, 1.0);
+
+  // GCP files: measurements are the true target centres plus clicking noise.
+  for (GcpFile* file : {&scene.control, &scene.checks}) {
+    for (GroundPoint& point : file->points) {
+      for (GcpMeasurement& m : point.measurements) {
+        for (const Observation& obs : truth.observations) {
+          const Point& p = truth.points[obs.point];
+          if (p.name == point.name && truth.images[obs.image].name == m.image) {
+            m.xy_px = obs.xy + options.click_noise_px * Eigen::Vector2d(g(rng), g(rng));
+          }
+        }
+      }
+    }
+  }
+  WriteGcpFile(scene.control, dir / "gcp_list.txt");
+  WriteGcpFile(scene.checks, dir / "checkpoints.txt");
+
+  // GPS as EGM96 altitudes (what EXIF calls "above sea level").
+  std::ostringstream csv;
+  csv << "name,lat,lon,alt_egm96_m\n" << std::setprecision(12);
+  std::map<std::string, double> egm_altitude;
+  for (const auto& [name, fix] : scene.gps) {
+    const double alt = fix.position.h_m - Egm96Undulation(fix.position.lat_deg, fix.position.lon_deg);
+    egm_altitude[name] = alt;
+    csv << name << "," << fix.position.lat_deg << "," << fix.position.lon_deg << ","
+        << std::setprecision(8) << alt << std::setprecision(12) << "\n";
+  }
+  WriteTextFileAtomically(dir / "gps.csv", csv.str());
+
+  // The tie-point model in an arbitrary frame: what another tool exports.
+  {
+    SparseModel model = scene.tie_model;
+    const double s = 0.05;
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, 0.3, 0.9).normalized()));
+    const Eigen::Vector3d t(3.0, -2.0, 1.0);
+    for (Image& image : model.images) {
+      image.pose.centre_in_world = s * (q * image.pose.centre_in_world) + t;
+      image.pose.cam_from_world = (image.pose.cam_from_world * q.conjugate()).normalized();
+    }
+    for (Point& point : model.points) point.position = s * (q * point.position) + t;
+    WriteColmapText(model, dir / "model");
+  }
+  WriteColmapText(truth, dir / "truth" / "model");
+
+  // Truth DEM in the output CRS over the area (with a margin).
+  {
+    const double margin = 10.0;
+    const double w = options.survey.area_width_m + 2 * margin;
+    const double h = options.survey.area_height_m + 2 * margin;
+    const Eigen::Vector3d sw = crs.FromGeodetic(frame.GeodeticFromEnu({-w / 2, -h / 2, 0}));
+    const Eigen::Vector3d ne = crs.FromGeodetic(frame.GeodeticFromEnu({w / 2, h / 2, 0}));
+    const double res = options.dem_resolution_m;
+    Raster dem;
+    dem.width = static_cast<int>(std::ceil((ne.x() - sw.x()) / res));
+    dem.height = static_cast<int>(std::ceil((ne.y() - sw.y()) / res));
+    dem.geotransform = {std::floor(sw.x()), res, 0.0, std::ceil(ne.y()), 0.0, -res};
+    dem.wkt = crs.Wkt();
+    dem.values.resize(static_cast<size_t>(dem.width) * dem.height);
+    for (int y = 0; y < dem.height; ++y) {
+      for (int x = 0; x < dem.width; ++x) {
+        dem.at(x, y) = static_cast<float>(
+            TerrainInCrs(crs, frame, dem.X(x), dem.Y(y), options.survey.relief_m));
+      }
+    }
+    fs::create_directories(dir / "truth");
+    WriteRaster(dem, dir / "truth" / "dem.tif");
+  }
+
+  nlohmann::json info;
+  info["origin"] = {{"lat_deg", options.georef.origin.lat_deg},
+                    {"lon_deg", options.georef.origin.lon_deg},
+                    {"h_m", options.georef.origin.h_m}};
+  info["crs"] = options.georef.crs;
+  info["gsd_m"] = scene.survey.gsd_m;
+  info["images"] = truth.images.size();
+  info["camera"] = {{"model", "BROWN"}, {"width", options.survey.width},
+                    {"height", options.survey.height}, {"params", options.survey.brown_params},
+                    {"param_names", GetCameraModelInfo(CameraModelId::kBrown).param_names},
+                    {"pixel_origin", "centre of the top-left pixel is (0, 0)"}};
+  info["gps_sigma_h_m"] = options.georef.gps_sigma_h_m;
+  info["gps_sigma_v_m"] = options.georef.gps_sigma_v_m;
+  info["gcp_noise_m"] = options.georef.gcp_noise_m;
+  info["click_noise_px"] = options.click_noise_px;
+  info["tie_point_noise_px"] = options.survey.pixel_noise_px;
+  info["relief_m"] = options.survey.relief_m;
+  info["seed"] = options.survey.seed;
+  WriteTextFileAtomically(dir / "truth" / "truth.json", info.dump(2) + "\n");
+
+  if (!options.render_images) return;
+  fs::create_directories(dir / "images");
+  RenderOptions render;
+  render.relief_m = options.survey.relief_m;
+  render.seed = options.survey.seed;
+  for (const Point& p : truth.points) {
+    if (p.role != PointRole::kTie) render.targets.push_back({p.position.head<2>(), 1.0});
+  }
+  const Camera& camera = truth.cameras[0];
+  const double focal_mm = camera.params[0] * options.sensor_width_mm / camera.width;
+  for (size_t i = 0; i < truth.images.size(); ++i) {
+    const Image& image = truth.images[i];
+    const fs::path path = dir / "images" / image.name;
+    if (fs::exists(path)) continue;  // resume an interrupted simulation
+    ReportProgress(options.progress, static_cast<double>(i) / truth.images.size(),
+                   "rendering " + image.name);
+    render.seed = options.survey.seed * 1000 + static_cast<std::uint32_t>(i);
+    const cv::Mat pixels = RenderImage(camera, image.pose, render);
+    const GpsFix& fix = scene.gps.at(image.name);
+    std::map<std::string, std::string> exif;
+    exif["EXIF_Make"] = "aerotri";
+    exif["EXIF_Model"] = "simulated Brown camera";
+    exif["EXIF_GPSLatitude"] = ExifDms(fix.position.lat_deg);
+    exif["EXIF_GPSLatitudeRef"] = fix.position.lat_deg >= 0 ? "N" : "S";
+    exif["EXIF_GPSLongitude"] = ExifDms(fix.position.lon_deg);
+    exif["EXIF_GPSLongitudeRef"] = fix.position.lon_deg >= 0 ? "E" : "W";
+    const double alt = egm_altitude.at(image.name);
+    exif["EXIF_GPSAltitude"] = "(" + std::to_string(std::abs(alt)) + ")";
+    exif["EXIF_GPSAltitudeRef"] = alt >= 0 ? "0x00" : "0x01";
+    exif["EXIF_FocalLength"] = "(" + std::to_string(focal_mm) + ")";
+    exif["EXIF_FocalPlaneXResolution"] = "(" + std::to_string(camera.width / (options.sensor_width_mm / 10.0)) + ")";
+    exif["EXIF_FocalPlaneYResolution"] = exif["EXIF_FocalPlaneXResolution"];
+    exif["EXIF_FocalPlaneResolutionUnit"] = "3";  // centimetres
+    exif["EXIF_PixelXDimension"] = std::to_string(camera.width);
+    exif["EXIF_PixelYDimension"] = std::to_string(camera.height);
+    exif["EXIF_FocalLengthIn35mmFilm"] =
+        std::to_string(static_cast<int>(std::lround(focal_mm * 36.0 / options.sensor_width_mm)));
+    WriteJpegWithExif(path, pixels, exif, options.jpeg_quality);
+  }
+  ReportProgress(options.progress, 1.0, "simulated " + std::to_string(truth.images.size()) + " images");
+}
+
+}  // namespace aerotri

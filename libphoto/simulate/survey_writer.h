@@ -1,0 +1,39 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Writes a synthetic survey to disk as a surveyor would receive it, plus its
+// truth:
+//   images/IMG_*.JPG     rendered photos, EXIF GPS (noisy), focal length
+//   gcp_list.txt         control points (output CRS, survey noise), target
+//                        centres as measured in the images (corner origin)
+//   checkpoints.txt      check points, same format
+//   gps.csv              the same noisy GPS as the EXIF (name,lat,lon,alt)
+//   model/               the tie-point model in an arbitrary frame and scale
+//                        (COLMAP text), as another tool would export it
+//   truth/model/         exact cameras and points in ENU (COLMAP text)
+//   truth/dem.tif        the terrain in the output CRS (GeoTIFF)
+//   truth/truth.json     origin, CRS, camera, GSD, noise levels
+// GPS altitudes (EXIF and CSV) are EGM96 heights, as EXIF "above sea level".
+
+#include <filesystem>
+#include <string>
+
+#include "libphoto/base/progress.h"
+#include "libphoto/simulate/synthetic_georef.h"
+
+namespace aerotri {
+
+struct SimulationOptions {
+  SyntheticSurveyOptions survey;
+  SyntheticGeorefOptions georef;
+  bool render_images = true;
+  int jpeg_quality = 88;
+  double click_noise_px = 0.3;   // GCP measurement noise in the files
+  double dem_resolution_m = 0.5;
+  double sensor_width_mm = 6.4;  // for EXIF focal length in mm
+  ProgressCallback progress;
+};
+
+void WriteSyntheticSurvey(const SimulationOptions& options, const std::filesystem::path& dir);
+
+}  // namespace aerotri

@@ -1,0 +1,127 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// aerotri adjust end to end, in-process: a simulated survey's exported model
+// (arbitrary frame), GPS CSV, control and check files in; report.json and the
+// ENU model out, with the keys the georeferencing issue names.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
+#include "libphoto/io/colmap_text.h"
+#include "tests/test_util.h"
+#include "tools/commands.h"
+
+namespace aerotri {
+namespace {
+
+struct RunResult {
+  int code;
+  std::string out, err;
+};
+
+RunResult RunAdjustInProcess(const AdjustArgs& args) {
+  std::ostringstream out, err;
+  ToolContext ctx;
+  ctx.out = &out;
+  ctx.err = &err;
+  const int code = RunAdjust(args, ctx);
+  return {code, out.str(), err.str()};
+}
+
+class AdjustCommand : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new testing::TempDir();
+    SimulateArgs sim;
+    sim.output = (dir_->path() / "sim").string();
+    sim.no_images = true;
+    sim.seed = 4;
+    std::ostringstream out, err;
+    ToolContext ctx;
+    ctx.out = &out;
+    ctx.err = &err;
+    ctx.quiet = true;
+    ASSERT_EQ(RunSimulate(sim, ctx), 0);
+  }
+  static void TearDownTestSuite() { delete dir_; }
+  AdjustArgs Args(const std::string& out) const {
+    AdjustArgs a;
+    const auto sim = dir_->path() / "sim";
+    a.model_dir = (sim / "model").string();
+    a.gps_csv = (sim / "gps.csv").string();
+    a.gcp = (sim / "gcp_list.txt").string();
+    a.checkpoints = (sim / "checkpoints.txt").string();
+    a.output = (dir_->path() / out).string();
+    return a;
+  }
+  static testing::TempDir* dir_;
+};
+testing::TempDir* AdjustCommand::dir_ = nullptr;
+
+TEST_F(AdjustCommand, WritesReportWithEveryKey) {
+  const AdjustArgs args = Args("out");
+  const RunResult run = RunAdjustInProcess(args);
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto report = nlohmann::json::parse(ReadTextFile(std::filesystem::path(args.output) / "report.json"));
+  EXPECT_EQ(report["crs"], "EPSG:32632");
+  EXPECT_NEAR(report["enu_origin"]["lat_deg"].get<double>(), 46.5, 0.01);
+  for (const char* group : {"control_points", "check_points"}) {
+    for (const char* key : {"count", "rmse_x_m", "rmse_y_m", "rmse_z_m", "rmse_h_m", "rmse_3d_m", "points"}) {
+      EXPECT_TRUE(report[group].contains(key)) << group << "." << key;
+    }
+    for (const auto& p : report[group]["points"]) {
+      for (const char* key : {"name", "dx_m", "dy_m", "dz_m", "reprojection_rms_px"}) {
+        EXPECT_TRUE(p.contains(key)) << group << " point " << key;
+      }
+    }
+  }
+  EXPECT_EQ(report["control_points"]["count"], 8);
+  EXPECT_EQ(report["check_points"]["count"], 6);
+  // The simulation's GSD is 7.5 cm; check points within a few centimetres.
+  const double rmse_h = report["check_points"]["rmse_h_m"];
+  const double rmse_z = report["check_points"]["rmse_z_m"];
+  EXPECT_GT(report["check_points"]["rmse_3d_m"].get<double>(), 0.002);
+  EXPECT_LT(report["check_points"]["rmse_3d_m"].get<double>(), 0.08);
+  EXPECT_NEAR(report["asprs"]["edition_2014"]["horizontal_accuracy_95_m"].get<double>(), 1.7308 * rmse_h, 1e-12);
+  EXPECT_NEAR(report["asprs"]["edition_2014"]["nva_95_m"].get<double>(), 1.96 * rmse_z, 1e-12);
+  EXPECT_NEAR(report["asprs"]["edition_2023"]["rmse_v_m"].get<double>(), rmse_z, 1e-12);
+  ASSERT_EQ(report["cameras"].size(), 48u);
+  EXPECT_TRUE(report["cameras"][0].contains("de_m"));
+  for (const char* key : {"initial_rms_px", "final_rms_px", "iterations", "termination", "datum", "intrinsics"}) {
+    EXPECT_TRUE(report["adjustment"].contains(key)) << key;
+  }
+  EXPECT_NE(report["adjustment"]["datum"].get<std::string>().find("datum from priors"), std::string::npos);
+  // The model is written in ENU: cameras ~60 m above the origin's ground.
+  const SparseModel model = ReadColmapText(std::filesystem::path(args.output) / "model");
+  EXPECT_EQ(model.images.size(), 48u);
+  EXPECT_NEAR(model.images[0].pose.centre_in_world.z(), 0.0, 20.0);
+  EXPECT_NE(run.out.find("check_count=6"), std::string::npos);
+}
+
+TEST_F(AdjustCommand, CompoundCrsGivesOrthometricCoordinates) {
+  AdjustArgs args = Args("out_compound");
+  args.crs = "EPSG:32632+5773";
+  ASSERT_EQ(RunAdjustInProcess(args).code, 0);
+  AdjustArgs plain = Args("out_plain");
+  ASSERT_EQ(RunAdjustInProcess(plain).code, 0);
+  const auto a = nlohmann::json::parse(ReadTextFile(std::filesystem::path(args.output) / "report.json"));
+  const auto b = nlohmann::json::parse(ReadTextFile(std::filesystem::path(plain.output) / "report.json"));
+  EXPECT_EQ(a["crs"], "EPSG:32632+5773");
+  // Same surveyed point: orthometric = ellipsoidal - 50.09 m (EGM96 here).
+  const double h_ortho = a["check_points"]["points"][0]["surveyed"][2];
+  const double h_ell = b["check_points"]["points"][0]["surveyed"][2];
+  EXPECT_NEAR(h_ell - h_ortho, 50.09, 0.02);
+  // Residuals do not depend on the vertical datum.
+  EXPECT_NEAR(a["check_points"]["rmse_z_m"].get<double>(), b["check_points"]["rmse_z_m"].get<double>(), 1e-3);
+}
+
+TEST_F(AdjustCommand, InputsAreNeverModified) {
+  AdjustArgs args = Args("unused");
+  args.output = args.model_dir;
+  EXPECT_THROW(RunAdjustInProcess(args), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace aerotri
