@@ -272,11 +272,13 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   // Per-camera-group refinement and the block layout of each image.
   std::vector<std::vector<int>> refined(model->cameras.size());
   std::vector<int> images_of_camera(model->cameras.size(), 0);
-  for (size_t c = 0; c < model->cameras.size(); ++c) {
-    refined[c] = RefinedParams(model->cameras[c], options);
-  }
   for (size_t i = 0; i < num_images; ++i) {
     if (image_used[i]) ++images_of_camera[model->images[i].camera];
+  }
+  for (size_t c = 0; c < model->cameras.size(); ++c) {
+    if (images_of_camera[c] >= options.min_images_to_refine_intrinsics) {
+      refined[c] = RefinedParams(model->cameras[c], options);
+    }
   }
   auto constant_params = [&](int c) {
     std::vector<int> constant;

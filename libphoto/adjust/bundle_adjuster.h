@@ -65,6 +65,9 @@ struct BundleOptions {
 
   IntrinsicsRefinement refine_intrinsics = IntrinsicsRefinement::kAll;
   std::vector<std::string> refine_params;  // for kList
+  // A camera group seen by fewer adjusted images than this keeps its
+  // intrinsics fixed (too little geometry to calibrate it).
+  int min_images_to_refine_intrinsics = 1;
 
   bool use_gps_priors = true;
   bool use_gcp_priors = true;

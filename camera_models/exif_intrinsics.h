@@ -1,0 +1,41 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Initial focal length in pixels from what an image's EXIF says, in order of
+// trust:
+//  1. focal length (mm) x focal-plane resolution (px/mm), scaled by the
+//     stored width over EXIF's pixel width (photos are often resized);
+//  2. focal length (mm) over the sensor width of a known camera model
+//     (a small table of common drone cameras), times the longer image side;
+//  3. the 35 mm equivalent focal length over 36 mm, times the longer side;
+//  4. nothing known: 0.85 x the longer side (a typical drone wide angle).
+// The source is reported so that a surveyor knows what was assumed; the
+// adjustment refines the value anyway.
+
+#include <optional>
+#include <string>
+
+namespace aerotri {
+
+struct ExifOptics {
+  std::string make;
+  std::string model;
+  std::optional<double> focal_mm;
+  std::optional<double> focal_35mm;
+  std::optional<double> focal_plane_px_per_mm;
+  std::optional<int> exif_pixel_width;
+  int width = 0;   // px, of the stored image
+  int height = 0;
+};
+
+struct FocalEstimate {
+  double focal_px = 0.0;  // for the stored image size
+  std::string source;
+};
+
+FocalEstimate FocalFromExif(const ExifOptics& optics);
+
+// Sensor width (mm) of a known camera model, e.g. DJI "FC300S" -> 6.17.
+std::optional<double> KnownSensorWidthMm(const std::string& make, const std::string& model);
+
+}  // namespace aerotri

@@ -1,0 +1,423 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/sfm/incremental_mapper.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+#include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/base/error.h"
+#include "libphoto/sfm/tracks.h"
+#include "libphoto/sfm/triangulation.h"
+
+namespace aerotri {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+class Mapper {
+ public:
+  Mapper(const std::vector<std::string>& names, const std::vector<int>& camera_of_image,
+         const std::vector<Camera>& cameras, const std::vector<ImageFeatures>& features,
+         const std::vector<PairMatches>& matches, const MapperOptions& options)
+      : features_(features), matches_(matches), options_(options) {
+    model_.cameras = cameras;
+    for (size_t i = 0; i < names.size(); ++i) {
+      Image image;
+      image.id = static_cast<int>(i) + 1;
+      image.name = names[i];
+      image.camera = camera_of_image[i];
+      image.registered = false;
+      model_.images.push_back(image);
+    }
+    std::vector<int> counts;
+    for (const ImageFeatures& f : features) counts.push_back(static_cast<int>(f.keypoints.size()));
+    tracks_ = BuildTracks(counts, matches);
+    point_of_track_.assign(tracks_.tracks.size(), -1);
+    status_.resize(names.size());
+    failures_.assign(names.size(), 0);
+    for (const PairMatches& m : matches) {
+      has_pair_[m.i] = has_pair_[m.j] = true;
+    }
+  }
+
+  MapperResult Run() {
+    MapperResult result;
+    result.num_tracks = static_cast<int>(tracks_.tracks.size());
+    result.dropped_inconsistent_tracks = tracks_.dropped_inconsistent;
+    if (!Initialise(&result.initial_pair)) {
+      for (size_t i = 0; i < status_.size(); ++i) {
+        status_[i].why_not = has_pair_.count(static_cast<int>(i))
+                                 ? "no image pair with enough matches and parallax to start from"
+                                 : "no verified image pair (no overlap found)";
+      }
+      result.images = status_;
+      result.model = model_;
+      return result;
+    }
+    int last_ba = NumRegistered();
+    while (true) {
+      const std::vector<int> candidates = NextImages();
+      bool registered_one = false;
+      for (int image : candidates) {
+        if (Register(image)) {
+          registered_one = true;
+          Report();
+          break;
+        }
+      }
+      if (!registered_one) {
+        // Retry after an adjustment if it has not run on this model yet.
+        if (last_ba != NumRegistered()) {
+          GlobalAdjust(false);
+          last_ba = NumRegistered();
+          std::fill(failures_.begin(), failures_.end(), 0);
+          continue;
+        }
+        break;
+      }
+      const int n = NumRegistered();
+      if (n <= 8 || n >= last_ba + std::max(2, last_ba / 4)) {
+        GlobalAdjust(false);
+        last_ba = n;
+      }
+    }
+    GlobalAdjust(true);
+    ++adjustments_;
+    for (size_t i = 0; i < status_.size(); ++i) {
+      if (!model_.images[i].registered && status_[i].why_not.empty()) {
+        status_[i].why_not = has_pair_.count(static_cast<int>(i))
+                                 ? "too few 2D-3D correspondences to register"
+                                 : "no verified image pair (no overlap found)";
+      }
+    }
+    Compact();
+    result.model = std::move(model_);
+    result.images = status_;
+    result.global_adjustments = adjustments_;
+    return result;
+  }
+
+ private:
+  int NumRegistered() const { return model_.NumRegisteredImages(); }
+
+  void Report() {
+    ReportProgress(options_.progress, static_cast<double>(NumRegistered()) / model_.images.size(),
+                   std::to_string(NumRegistered()) + "/" + std::to_string(model_.images.size()) +
+                       " images registered, " + std::to_string(NumLivePoints()) + " points");
+  }
+
+  int NumLivePoints() const {
+    int n = 0;
+    for (int p : point_of_track_) n += p >= 0;
+    return n;
+  }
+
+  std::optional<Eigen::Vector2d> Normalized(int image, int feature) const {
+    const Keypoint& k = features_[image].keypoints[feature];
+    return model_.cameras[model_.images[image].camera].NormalizedFromImage(Eigen::Vector2d(k.x, k.y));
+  }
+
+  Eigen::Vector2d Pixel(int image, int feature) const {
+    const Keypoint& k = features_[image].keypoints[feature];
+    return {k.x, k.y};
+  }
+
+  double Focal(int image) const { return model_.cameras[model_.images[image].camera].focal_px(); }
+
+  bool Initialise(std::string* description) {
+    std::vector<const PairMatches*> order;
+    for (const PairMatches& m : matches_) order.push_back(&m);
+    // Many inliers, and not explained by a homography alone (parallax).
+    auto score = [](const PairMatches* m) {
+      const double h = static_cast<double>(m->homography_inliers) / std::max<size_t>(1, m->inliers.size());
+      return m->inliers.size() * (1.2 - std::min(1.0, h));
+    };
+    std::sort(order.begin(), order.end(), [&](auto* a, auto* b) { return score(a) > score(b); });
+    for (int k = 0; k < std::min<int>(options_.init_candidates, static_cast<int>(order.size())); ++k) {
+      if (TryPair(*order[k])) {
+        *description = model_.images[order[k]->i].name + " + " + model_.images[order[k]->j].name;
+        return true;
+      }
+    }
+    return false;
+  }
+
+  bool TryPair(const PairMatches& m) {
+    std::vector<cv::Point2d> a, b;
+    std::vector<int> fa, fb;
+    for (const auto& in : m.inliers) {
+      const auto na = Normalized(m.i, in[0]), nb = Normalized(m.j, in[1]);
+      if (!na || !nb) continue;
+      a.emplace_back(na->x(), na->y());
+      b.emplace_back(nb->x(), nb->y());
+      fa.push_back(in[0]);
+      fb.push_back(in[1]);
+    }
+    if (a.size() < 30) return false;
+    const double threshold = options_.max_reprojection_px / std::sqrt(Focal(m.i) * Focal(m.j));
+    cv::Mat mask;
+    cv::Mat e = cv::findEssentialMat(a, b, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.9999, threshold, mask);
+    if (e.rows != 3 || e.cols != 3) return false;
+    cv::Mat r, t;
+    const int good = cv::recoverPose(e, a, b, r, t, 1.0, cv::Point2d(0, 0), mask);
+    if (good < 30) return false;
+    Eigen::Matrix3d R;
+    Eigen::Vector3d T;
+    cv::cv2eigen(r, R);
+    cv::cv2eigen(t, T);
+    std::vector<Pose> saved = {model_.images[m.i].pose, model_.images[m.j].pose};
+    model_.images[m.i].pose = Pose();
+    model_.images[m.j].pose = Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+    model_.images[m.i].registered = model_.images[m.j].registered = true;
+    // Triangulate the pair's tracks and check parallax.
+    std::vector<double> angles;
+    for (size_t k = 0; k < fa.size(); ++k) {
+      const int track = tracks_.track_of[m.i][fa[k]];
+      if (track < 0 || point_of_track_[track] >= 0) continue;
+      const int p = TriangulateTrack(track);
+      if (p >= 0) {
+        const Eigen::Vector3d x = model_.points[p].position;
+        const Eigen::Vector3d ra = (x - model_.images[m.i].pose.centre_in_world).normalized();
+        const Eigen::Vector3d rb = (x - model_.images[m.j].pose.centre_in_world).normalized();
+        angles.push_back(std::acos(std::clamp(ra.dot(rb), -1.0, 1.0)) / kDeg);
+      }
+    }
+    std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
+    const double median = angles.empty() ? 0.0 : angles[angles.size() / 2];
+    if (angles.size() < 30 || median < options_.init_min_median_angle_deg) {
+      Reset(saved, m.i, m.j);
+      return false;
+    }
+    status_[m.i] = {true, "", static_cast<int>(a.size()), good};
+    status_[m.j] = {true, "", static_cast<int>(a.size()), good};
+    GlobalAdjust(false);
+    if (NumLivePoints() < 30) {
+      Reset(saved, m.i, m.j);
+      return false;
+    }
+    Report();
+    return true;
+  }
+
+  void Reset(const std::vector<Pose>& saved, int a, int b) {
+    model_.images[a].pose = saved[0];
+    model_.images[b].pose = saved[1];
+    model_.images[a].registered = model_.images[b].registered = false;
+    model_.points.clear();
+    model_.observations.clear();
+    std::fill(point_of_track_.begin(), point_of_track_.end(), -1);
+    status_[a] = status_[b] = ImageRegistration();
+  }
+
+  // Triangulates a track from its registered views; returns the point index
+  // or -1. Views whose reprojection error is too large are left out.
+  int TriangulateTrack(int track) {
+    std::vector<View> views;
+    std::vector<const TrackElement*> elements;
+    for (const TrackElement& e : tracks_.tracks[track]) {
+      const Image& image = model_.images[e.image];
+      if (!image.registered) continue;
+      views.push_back({&model_.cameras[image.camera], image.pose, Pixel(e.image, e.feature)});
+      elements.push_back(&e);
+    }
+    if (views.size() < 2) return -1;
+    TriangulationOptions topt;
+    topt.min_angle_deg = options_.min_triangulation_angle_deg;
+    const auto t = TriangulatePoint(views, topt);
+    if (!t) return -1;
+    std::vector<int> keep;
+    for (size_t v = 0; v < views.size(); ++v) {
+      const Eigen::Vector3d pc = views[v].pose.CamFromWorld(t->position);
+      if (pc.z() <= 0) continue;
+      if ((views[v].camera->ImageFromCamera(pc) - views[v].xy).norm() <= options_.max_reprojection_px) {
+        keep.push_back(static_cast<int>(v));
+      }
+    }
+    if (keep.size() < 2) return -1;
+    Point point;
+    point.id = static_cast<int>(model_.points.size()) + 1;
+    point.position = t->position;
+    const Keypoint& k = features_[elements[keep[0]]->image].keypoints[elements[keep[0]]->feature];
+    point.color = {k.rgb[0], k.rgb[1], k.rgb[2]};
+    const int p = static_cast<int>(model_.points.size());
+    model_.points.push_back(point);
+    for (int v : keep) {
+      model_.observations.push_back({elements[v]->image, p, views[v].xy, elements[v]->feature});
+    }
+    point_of_track_[track] = p;
+    return p;
+  }
+
+  std::vector<int> NextImages() {
+    std::vector<std::pair<int, int>> counts;
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      if (model_.images[i].registered || failures_[i] >= 2) continue;
+      int n = 0;
+      for (int t : tracks_.track_of[i]) n += (t >= 0 && point_of_track_[t] >= 0);
+      if (n >= options_.min_pnp_inliers) counts.push_back({n, static_cast<int>(i)});
+      status_[i].correspondences = n;
+    }
+    std::sort(counts.rbegin(), counts.rend());
+    std::vector<int> out;
+    for (size_t k = 0; k < counts.size() && k < 5; ++k) out.push_back(counts[k].second);
+    return out;
+  }
+
+  bool Register(int image) {
+    std::vector<cv::Point3d> world;
+    std::vector<cv::Point2d> rays;
+    std::vector<int> feats;
+    for (size_t f = 0; f < tracks_.track_of[image].size(); ++f) {
+      const int t = tracks_.track_of[image][f];
+      if (t < 0 || point_of_track_[t] < 0) continue;
+      const auto n = Normalized(image, static_cast<int>(f));
+      if (!n) continue;
+      const Eigen::Vector3d& x = model_.points[point_of_track_[t]].position;
+      world.emplace_back(x.x(), x.y(), x.z());
+      rays.emplace_back(n->x(), n->y());
+      feats.push_back(static_cast<int>(f));
+    }
+    ImageRegistration& st = status_[image];
+    st.correspondences = static_cast<int>(world.size());
+    if (static_cast<int>(world.size()) < options_.min_pnp_inliers) {
+      st.why_not = "too few 2D-3D correspondences (" + std::to_string(world.size()) + ")";
+      ++failures_[image];
+      return false;
+    }
+    cv::Mat rvec, tvec;
+    std::vector<int> inliers;
+    const double threshold = options_.max_reprojection_px / Focal(image);
+    const bool ok = cv::solvePnPRansac(world, rays, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec,
+                                       false, 2000, threshold, 0.9999, inliers, cv::SOLVEPNP_AP3P);
+    st.inliers = static_cast<int>(inliers.size());
+    if (!ok || static_cast<int>(inliers.size()) < options_.min_pnp_inliers ||
+        inliers.size() < 0.2 * world.size()) {
+      st.why_not = "PnP found " + std::to_string(inliers.size()) + " inliers of " +
+                   std::to_string(world.size()) + " 2D-3D correspondences";
+      ++failures_[image];
+      return false;
+    }
+    std::vector<cv::Point3d> wi;
+    std::vector<cv::Point2d> ri;
+    for (int k : inliers) {
+      wi.push_back(world[k]);
+      ri.push_back(rays[k]);
+    }
+    cv::solvePnPRefineLM(wi, ri, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec);
+    cv::Mat rm;
+    cv::Rodrigues(rvec, rm);
+    Eigen::Matrix3d R;
+    Eigen::Vector3d T;
+    cv::cv2eigen(rm, R);
+    cv::cv2eigen(tvec, T);
+    Image& img = model_.images[image];
+    img.pose = Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+    img.registered = true;
+    st.registered = true;
+    st.why_not.clear();
+    const Camera& camera = model_.cameras[img.camera];
+    for (size_t k = 0; k < feats.size(); ++k) {
+      const int f = feats[k];
+      const int p = point_of_track_[tracks_.track_of[image][f]];
+      const Eigen::Vector3d pc = img.pose.CamFromWorld(model_.points[p].position);
+      if (pc.z() <= 0) continue;
+      const Eigen::Vector2d xy = Pixel(image, f);
+      if ((camera.ImageFromCamera(pc) - xy).norm() <= options_.max_reprojection_px) {
+        model_.observations.push_back({image, p, xy, f});
+      }
+    }
+    // New tracks through this image.
+    for (size_t f = 0; f < tracks_.track_of[image].size(); ++f) {
+      const int t = tracks_.track_of[image][f];
+      if (t >= 0 && point_of_track_[t] < 0) TriangulateTrack(t);
+    }
+    return true;
+  }
+
+  void GlobalAdjust(bool final_round) {
+    BundleOptions o;
+    o.loss = LossType::kHuber;
+    o.loss_scale_px = 1.0;
+    o.outlier_threshold_px = options_.max_reprojection_px;
+    o.max_outlier_rounds = 2;
+    o.num_threads = options_.num_threads;
+    o.max_iterations = final_round ? 100 : 40;
+    const int n = NumRegistered();
+    if (final_round) {
+      o.refine_intrinsics = IntrinsicsRefinement::kAll;
+    } else if (n >= 5) {
+      o.refine_intrinsics = IntrinsicsRefinement::kList;
+      o.refine_params = {"f", "k1", "k2"};
+    } else {
+      o.refine_intrinsics = IntrinsicsRefinement::kNone;
+    }
+    o.min_images_to_refine_intrinsics = 3;
+    AdjustBundle(&model_, o);
+    ++adjustments_;
+    // Points left with fewer than two observations are dropped (their tracks
+    // may be triangulated again); then tracks that can be triangulated now.
+    const std::vector<int> per_point = model_.ObservationsPerPoint();
+    std::vector<Observation> kept;
+    for (const Observation& obs : model_.observations) {
+      if (per_point[obs.point] >= 2) kept.push_back(obs);
+    }
+    model_.observations.swap(kept);
+    for (size_t t = 0; t < point_of_track_.size(); ++t) {
+      const int p = point_of_track_[t];
+      if (p >= 0 && per_point[p] < 2) point_of_track_[t] = -1;
+    }
+    for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
+      if (point_of_track_[t] < 0) TriangulateTrack(static_cast<int>(t));
+    }
+  }
+
+  // Removes points without observations and renumbers.
+  void Compact() {
+    const std::vector<int> per_point = model_.ObservationsPerPoint();
+    std::vector<int> remap(model_.points.size(), -1);
+    std::vector<Point> points;
+    for (size_t p = 0; p < model_.points.size(); ++p) {
+      if (per_point[p] < 2) continue;
+      remap[p] = static_cast<int>(points.size());
+      points.push_back(model_.points[p]);
+      points.back().id = static_cast<int>(points.size());
+    }
+    std::vector<Observation> obs;
+    for (Observation o : model_.observations) {
+      if (remap[o.point] < 0) continue;
+      o.point = remap[o.point];
+      obs.push_back(o);
+    }
+    model_.points.swap(points);
+    model_.observations.swap(obs);
+  }
+
+  const std::vector<ImageFeatures>& features_;
+  const std::vector<PairMatches>& matches_;
+  MapperOptions options_;
+  SparseModel model_;
+  Tracks tracks_;
+  std::vector<int> point_of_track_;
+  std::vector<ImageRegistration> status_;
+  std::vector<int> failures_;
+  std::map<int, bool> has_pair_;
+  int adjustments_ = 0;
+};
+
+}  // namespace
+
+MapperResult ReconstructIncremental(const std::vector<std::string>& names,
+                                    const std::vector<int>& camera_of_image,
+                                    const std::vector<Camera>& cameras,
+                                    const std::vector<ImageFeatures>& features,
+                                    const std::vector<PairMatches>& matches,
+                                    const MapperOptions& options) {
+  AEROTRI_CHECK(names.size() == camera_of_image.size() && names.size() == features.size());
+  Mapper mapper(names, camera_of_image, cameras, features, matches, options);
+  return mapper.Run();
+}
+
+}  // namespace aerotri

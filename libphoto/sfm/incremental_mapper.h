@@ -1,0 +1,64 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Incremental structure from motion (the Snavely / COLMAP scheme):
+//  1. an initial pair with many matches and enough parallax: relative pose
+//     from the essential matrix (five-point RANSAC on undistorted rays),
+//     triangulation, two-view bundle adjustment;
+//  2. repeatedly the unregistered image that sees the most triangulated
+//     tracks is registered by PnP RANSAC (P3P), its new tracks are
+//     triangulated with angle and reprojection checks;
+//  3. global bundle adjustment (robust loss, outlier rejection) whenever the
+//     model has grown by a quarter, self-calibrating focal length and radial
+//     distortion once enough images are in, then again at the end with every
+//     intrinsic parameter.
+// Images that fail are retried after each adjustment; the result says, per
+// image, whether it registered and why not.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "libphoto/base/progress.h"
+#include "libphoto/features/features.h"
+#include "libphoto/matching/matching.h"
+#include "libphoto/model/sparse_model.h"
+
+namespace aerotri {
+
+struct MapperOptions {
+  int min_pnp_inliers = 20;
+  double max_reprojection_px = 4.0;         // working resolution
+  double min_triangulation_angle_deg = 1.5;
+  double init_min_median_angle_deg = 2.0;
+  int init_candidates = 40;
+  int num_threads = 0;
+  ProgressCallback progress;
+};
+
+struct ImageRegistration {
+  bool registered = false;
+  std::string why_not;
+  int correspondences = 0;  // 2D-3D at the last attempt
+  int inliers = 0;
+};
+
+struct MapperResult {
+  SparseModel model;  // all images (registered flag set), points, observations
+  std::vector<ImageRegistration> images;
+  int num_tracks = 0;
+  int dropped_inconsistent_tracks = 0;
+  std::string initial_pair;
+  int global_adjustments = 0;
+};
+
+// cameras: one per camera group (working-resolution pixels, initial
+// intrinsics); camera_of_image indexes them; names are the image names.
+MapperResult ReconstructIncremental(const std::vector<std::string>& names,
+                                    const std::vector<int>& camera_of_image,
+                                    const std::vector<Camera>& cameras,
+                                    const std::vector<ImageFeatures>& features,
+                                    const std::vector<PairMatches>& matches,
+                                    const MapperOptions& options);
+
+}  // namespace aerotri
