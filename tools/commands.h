@@ -86,4 +86,30 @@ struct SimulateArgs {
 void RegisterSimulateCommand(CLI::App& app, CommandAction* run);
 int RunSimulate(const SimulateArgs& args, ToolContext& ctx);
 
+// aerotri run and its stages (ingest, features, match, reconstruct,
+// georeference): one argument set, each stage reading and writing the
+// workspace (see libphoto/pipeline/pipeline.h).
+struct RunArgs {
+  std::string images_dir;
+  std::string output;
+  bool force = false;
+  int threads = 0;
+  std::string gps_altitude = "egm96";
+  double gps_sigma_h_m = 3.0;
+  double gps_sigma_v_m = 5.0;
+  std::string gps_csv;
+  int max_dimension = 1600;
+  int max_features = 12000;
+  int gps_neighbours = 12;
+  std::string gcp;
+  std::string checkpoints;
+  std::string gcp_pixel_origin = "corner";
+  double gcp_sigma_h_m = 0.02;
+  double gcp_sigma_v_m = 0.03;
+  std::string crs;
+  std::string stage = "all";  // which stage a stage subcommand runs
+};
+void RegisterRunCommands(CLI::App& app, CommandAction* run);
+int RunPipelineCommand(const RunArgs& args, ToolContext& ctx);
+
 }  // namespace aerotri

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // The aerotri command line: one binary, subcommands. Exit codes: 0 success,
 // 1 runtime or data error, 2 usage error.
+#include <glog/logging.h>
+
 #include <CLI/CLI.hpp>
 #include <iostream>
 
@@ -10,6 +12,9 @@
 
 int main(int argc, char** argv) {
   using namespace aerotri;
+  // Ceres reports through glog; aerotri reports through its own summaries.
+  google::InitGoogleLogging(argv[0]);
+  FLAGS_minloglevel = google::GLOG_FATAL;
   CLI::App app{
       "aerotri: aerial triangulation and survey deliverables from drone photos.\n"
       "Progress goes to stderr, data to stdout. Exit codes: 0 ok, 1 runtime/data error, "
@@ -25,6 +30,7 @@ int main(int argc, char** argv) {
   RegisterBalCommand(app, &run);
   RegisterAdjustCommand(app, &run);
   RegisterSimulateCommand(app, &run);
+  RegisterRunCommands(app, &run);
 
   try {
     app.parse(argc, argv);

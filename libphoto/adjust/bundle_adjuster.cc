@@ -136,13 +136,13 @@ struct RoundResult {
   double setup_s = 0.0;
 };
 
-// The datum of a model without enough priors: image A's pose and the length
-// of the baseline from A to the farthest image B, as they were before the
-// solve. Reprojection error is invariant under similarity transforms, so the
-// solve runs with the gauge free (LM damping handles the 7-dimensional null
-// space, as in Ceres' BAL example) and RestoreDatum() maps the result back
-// exactly; holding the blocks fixed instead costs Ceres its specialised
-// Schur eliminator and, on the BAL problems, about twice the iterations.
+// The datum of a model without enough priors: image A's pose (held fixed in
+// the solve) and the length of the baseline from A to the farthest image B.
+// Reprojection error is invariant under scale, so the solve leaves scale free
+// (LM damping handles that one-dimensional null space) and RestoreDatum()
+// rescales about A exactly; holding a baseline coordinate fixed through a
+// SubsetManifold instead costs Ceres its specialised Schur eliminator and,
+// on the BAL problems, about twice the iterations.
 struct Datum {
   int a = -1;
   int b = -1;
@@ -230,13 +230,17 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   const bool datum_from_priors = PriorsFixDatum(prior_positions);
   Datum datum;
   bool fix_rotation_of_a = false;
+  bool fix_centre_of_a = false;
+  bool free_gauge = false;
   bool restore_scale = false;
+  auto images_of_camera_used = [&](int camera) {
+    int n = 0;
+    for (size_t i = 0; i < num_images; ++i) n += image_used[i] && model->images[i].camera == camera;
+    return n;
+  };
   if (!datum_from_priors) {
     for (size_t i = 0; i < num_images && datum.a < 0; ++i) {
-      if (image_used[i] && (prior_positions.empty() || model->images[i].gps_prior ||
-                            prior_positions.size() > 0)) {
-        datum.a = static_cast<int>(i);
-      }
+      if (image_used[i]) datum.a = static_cast<int>(i);
     }
     if (datum.a >= 0) {
       datum.pose_a = model->images[datum.a].pose;
@@ -250,10 +254,17 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
         }
       }
     }
-    // With some priors the pose of A cannot simply be restored afterwards (the
-    // priors are not invariant): hold A's rotation fixed instead; scale comes
-    // from the priors when they hold two distinct positions.
-    fix_rotation_of_a = !prior_positions.empty();
+    // Without priors, image A is held fixed and the scale (the one freedom
+    // left, to which reprojection is blind) is restored after the solve. When
+    // A has its own camera group (BAL), holding its blocks would cost Ceres
+    // its uniform camera blocks: A then moves freely too and its pose is
+    // restored exactly afterwards. With too few priors, A's rotation is held
+    // and the scale comes from the priors when they hold two distinct points.
+    const bool a_own_group =
+        datum.a >= 0 && images_of_camera_used(model->images[datum.a].camera) == 1;
+    free_gauge = prior_positions.empty() && a_own_group;
+    fix_rotation_of_a = !free_gauge;
+    fix_centre_of_a = prior_positions.empty() && !free_gauge;
     bool distinct = false;
     for (const auto& p : prior_positions) distinct |= (p - prior_positions[0]).norm() > 1e-6;
     restore_scale = !distinct;
@@ -372,6 +383,9 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       if (fix_rotation_of_a && static_cast<int>(i) == datum.a) {
         problem.SetParameterBlockConstant(rotations[i].data());
       }
+      if (fix_centre_of_a && static_cast<int>(i) == datum.a) {
+        problem.SetParameterBlockConstant(model->images[i].pose.centre_in_world.data());
+      }
     }
   }
   for (size_t c = 0; c < model->cameras.size(); ++c) {
@@ -395,9 +409,10 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       const std::string a = model->images[datum.a].name;
       const std::string b = datum.b >= 0 ? model->images[datum.b].name : "";
       if (prior_positions.empty()) {
-        gauge << "no priors: pose of image '" << a << "' and baseline '" << a << "'-'" << b
-              << "' held at their initial values (free-network solve, then the exact "
-                 "similarity transform back)";
+        gauge << "no priors: pose of image '" << a << "' held"
+              << (free_gauge ? " (restored exactly after a free-network solve)" : " fixed")
+              << "; scale held by the baseline '" << a << "'-'" << b
+              << "' (restored exactly after the solve, reprojection being blind to scale)";
       } else {
         gauge << "priors too few or collinear (" << prior_positions.size()
               << "): rotation of image '" << a << "' held fixed";
@@ -486,8 +501,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
   if (!datum_from_priors) {
-    RestoreDatum(datum, /*restore_rotation=*/prior_positions.empty(),
-                 prior_positions.empty() || restore_scale, image_used, point_used, model);
+    RestoreDatum(datum, /*restore_rotation=*/free_gauge, restore_scale, image_used, point_used, model);
   }
   return result;
 }

@@ -1,0 +1,590 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/pipeline/pipeline.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <mutex>
+#include <thread>
+
+#include "camera_models/exif_intrinsics.h"
+#include "georef/crs.h"
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
+#include "libphoto/ingest/image_metadata.h"
+#include "libphoto/io/colmap_text.h"
+#include "libphoto/report/report_json.h"
+
+namespace aerotri {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+void Log(const PipelineOptions& o, const std::string& message) {
+  if (o.log) o.log(message);
+}
+
+ProgressCallback StageProgress(const PipelineOptions& o, const std::string& stage) {
+  return o.progress ? o.progress(stage) : ProgressCallback();
+}
+
+double PeakRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+void RecordTiming(const PipelineOptions& o, const std::string& stage, double seconds) {
+  const fs::path path = o.workspace / "timings.json";
+  json timings = json::object();
+  if (fs::exists(path)) {
+    try {
+      timings = json::parse(ReadTextFile(path));
+    } catch (const std::exception&) {
+      timings = json::object();
+    }
+  }
+  timings[stage] = {{"wall_s", seconds}, {"peak_rss_mb", PeakRssMb()}};
+  WriteTextFileAtomically(path, timings.dump(2) + "\n");
+}
+
+unsigned Threads(const PipelineOptions& o) {
+  return o.num_threads > 0 ? static_cast<unsigned>(o.num_threads)
+                           : std::max(1u, std::thread::hardware_concurrency());
+}
+
+json ReadJson(const fs::path& path, const char* stage) {
+  if (!fs::exists(path)) {
+    throw IoError(path.string(), std::string("missing: run the ") + stage + " stage first");
+  }
+  try {
+    return json::parse(ReadTextFile(path));
+  } catch (const json::exception& e) {
+    throw ParseError(path.string(), 0, std::string("corrupt JSON (") + e.what() + "); delete it to redo the stage");
+  }
+}
+
+// The working-resolution size ExtractFeatures / LoadWorkingImage produce.
+std::pair<int, int> WorkingSize(int width, int height, int max_dimension) {
+  const int longer = std::max(width, height);
+  if (max_dimension <= 0 || longer <= max_dimension) return {width, height};
+  const double s = static_cast<double>(longer) / max_dimension;
+  return {static_cast<int>(std::lround(width / s)), static_cast<int>(std::lround(height / s))};
+}
+
+fs::path FeaturePath(const PipelineOptions& o, const std::string& name) {
+  return o.workspace / "features" / (name + ".sift");
+}
+
+struct IngestView {
+  std::vector<std::string> names;
+  std::vector<bool> usable;
+  std::vector<double> scale;  // full px per working px
+  std::vector<int> group;
+  std::vector<std::optional<GpsFix>> gps;
+  std::vector<Camera> cameras;  // per group, working px
+  json raw;
+};
+
+IngestView LoadIngest(const PipelineOptions& o) {
+  IngestView v;
+  v.raw = ReadJson(o.workspace / "ingest.json", "ingest");
+  for (const json& g : v.raw.at("groups")) {
+    Camera c;
+    c.id = static_cast<int>(v.cameras.size()) + 1;
+    c.model = CameraModelId::kBrown;
+    c.width = g.at("working_width");
+    c.height = g.at("working_height");
+    c.params = g.at("params").get<std::vector<double>>();
+    v.cameras.push_back(c);
+  }
+  for (const json& im : v.raw.at("images")) {
+    v.names.push_back(im.at("name"));
+    v.usable.push_back(im.at("usable"));
+    v.scale.push_back(im.value("scale", 1.0));
+    v.group.push_back(im.value("group", -1));
+    if (im.contains("gps") && !im["gps"].is_null()) {
+      GpsFix f;
+      f.position = {im["gps"]["lat_deg"], im["gps"]["lon_deg"], im["gps"]["h_m"]};
+      f.sigma_h_m = im["gps"]["sigma_h_m"];
+      f.sigma_v_m = im["gps"]["sigma_v_m"];
+      f.source = im["gps"]["source"];
+      v.gps.push_back(f);
+    } else {
+      v.gps.push_back(std::nullopt);
+    }
+  }
+  return v;
+}
+
+std::vector<ImageFeatures> LoadFeatures(const PipelineOptions& o, IngestView* ingest) {
+  std::vector<ImageFeatures> features(ingest->names.size());
+  for (size_t i = 0; i < ingest->names.size(); ++i) {
+    if (!ingest->usable[i]) continue;
+    const fs::path path = FeaturePath(o, ingest->names[i]);
+    if (!fs::exists(path)) {
+      ingest->usable[i] = false;  // decoding failed in the features stage
+      continue;
+    }
+    features[i] = ReadFeatures(path);
+  }
+  return features;
+}
+
+}  // namespace
+
+bool RunIngestStage(const PipelineOptions& o) {
+  const fs::path out = o.workspace / "ingest.json";
+  if (fs::exists(out) && !o.force) {
+    Log(o, "ingest: done already (" + out.string() + ")");
+    return false;
+  }
+  const auto start = Clock::now();
+  if (!fs::is_directory(o.images_dir)) {
+    throw IoError(o.images_dir.string(), "not a folder of images");
+  }
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(o.images_dir)) {
+    if (entry.is_regular_file() && IsImageFileName(entry.path())) files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  if (files.empty()) {
+    throw InvalidArgument(o.images_dir.string() + ": no images (.jpg, .jpeg, .tif, .tiff) found");
+  }
+  ProgressCallback progress = StageProgress(o, "ingest");
+  std::map<std::string, GpsFix> csv;
+  if (!o.gps_csv.empty()) csv = ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
+
+  json images = json::array();
+  json warnings = json::array();
+  std::map<std::string, int> group_of_key;
+  json groups = json::array();
+  int with_gps = 0;
+  for (size_t k = 0; k < files.size(); ++k) {
+    const std::string name = files[k].filename().string();
+    json im;
+    im["name"] = name;
+    ImageMetadata m;
+    try {
+      m = ReadImageMetadata(files[k]);
+    } catch (const IoError& e) {
+      im["usable"] = false;
+      im["problem"] = std::string("unreadable: ") + e.what();
+      warnings.push_back(std::string(e.what()) + "; skipped");
+      images.push_back(im);
+      continue;
+    }
+    im["usable"] = true;
+    im["width"] = m.width;
+    im["height"] = m.height;
+    const auto [ww, wh] = WorkingSize(m.width, m.height, o.features.max_dimension);
+    im["working_width"] = ww;
+    im["working_height"] = wh;
+    im["scale"] = static_cast<double>(m.width) / ww;
+    im["make"] = m.make;
+    im["model"] = m.model;
+    if (m.focal_mm) im["focal_mm"] = *m.focal_mm;
+    if (m.relative_altitude_m) im["relative_altitude_m"] = *m.relative_altitude_m;
+    if (m.gimbal_pitch_deg) im["gimbal_pitch_deg"] = *m.gimbal_pitch_deg;
+    if (m.gimbal_yaw_deg) im["gimbal_yaw_deg"] = *m.gimbal_yaw_deg;
+
+    std::optional<GpsFix> fix;
+    if (const auto it = csv.find(name); it != csv.end()) {
+      fix = it->second;
+    } else if (m.HasGps() && m.gps_altitude_m && !(*m.lat_deg == 0.0 && *m.lon_deg == 0.0)) {
+      GpsFix f;
+      f.position = {*m.lat_deg, *m.lon_deg,
+                    EllipsoidalHeight(*m.lat_deg, *m.lon_deg, *m.gps_altitude_m, o.gps_altitude)};
+      f.sigma_h_m = o.gps_sigma_h_m;
+      f.sigma_v_m = o.gps_sigma_v_m;
+      f.source = "exif";
+      if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_hgt_m > 0) {
+        f.sigma_h_m = std::max(0.005, std::hypot(*m.rtk_std_lat_m, *m.rtk_std_lon_m) / std::sqrt(2.0));
+        f.sigma_v_m = std::max(0.005, *m.rtk_std_hgt_m);
+        f.source = "exif+rtk";
+      }
+      fix = f;
+    }
+    if (fix) {
+      ++with_gps;
+      im["gps"] = {{"lat_deg", fix->position.lat_deg}, {"lon_deg", fix->position.lon_deg},
+                   {"h_m", fix->position.h_m}, {"sigma_h_m", fix->sigma_h_m},
+                   {"sigma_v_m", fix->sigma_v_m}, {"source", fix->source}};
+    } else {
+      im["gps"] = nullptr;
+      warnings.push_back(name + ": no GPS position (EXIF or CSV)");
+    }
+
+    // Camera group: one physical camera and one working image size.
+    std::ostringstream key;
+    key << m.make << "|" << m.model << "|" << std::setprecision(4) << m.focal_mm.value_or(0.0) << "|"
+        << ww << "x" << wh;
+    auto [it, inserted] = group_of_key.emplace(key.str(), static_cast<int>(groups.size()));
+    if (inserted) {
+      ExifOptics optics;
+      optics.make = m.make;
+      optics.model = m.model;
+      optics.focal_mm = m.focal_mm;
+      optics.focal_35mm = m.focal_35mm;
+      optics.focal_plane_px_per_mm = m.focal_plane_px_per_mm;
+      optics.exif_pixel_width = m.exif_pixel_width;
+      optics.width = m.width;
+      optics.height = m.height;
+      const FocalEstimate focal = FocalFromExif(optics);
+      const double f_work = focal.focal_px * ww / m.width;
+      Camera c = Camera::Create(CameraModelId::kBrown, f_work, ww, wh);
+      json g;
+      g["key"] = key.str();
+      g["make"] = m.make;
+      g["model"] = m.model;
+      g["working_width"] = ww;
+      g["working_height"] = wh;
+      g["camera_model"] = "BROWN";
+      g["params"] = c.params;
+      g["focal_source"] = focal.source;
+      g["images"] = 0;
+      groups.push_back(g);
+      if (focal.source.rfind("EXIF focal length", 0) != 0) {
+        warnings.push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
+      }
+    }
+    groups[it->second]["images"] = groups[it->second]["images"].get<int>() + 1;
+    im["group"] = it->second;
+    images.push_back(im);
+    ReportProgress(progress, static_cast<double>(k + 1) / files.size(), name);
+  }
+  json doc;
+  doc["images_dir"] = fs::absolute(o.images_dir).string();
+  doc["working_max_dimension"] = o.features.max_dimension;
+  doc["images"] = images;
+  doc["groups"] = groups;
+  doc["warnings"] = warnings;
+  doc["images_with_gps"] = with_gps;
+  fs::create_directories(o.workspace);
+  WriteTextFileAtomically(out, doc.dump(2) + "\n");
+  for (const auto& w : warnings) Log(o, "warning: " + w.get<std::string>());
+  RecordTiming(o, "ingest", std::chrono::duration<double>(Clock::now() - start).count());
+  return true;
+}
+
+bool RunFeatureStage(const PipelineOptions& o) {
+  IngestView ingest = LoadIngest(o);
+  const fs::path images_dir = ingest.raw.value("images_dir", o.images_dir.string());
+  std::vector<size_t> todo;
+  for (size_t i = 0; i < ingest.names.size(); ++i) {
+    if (ingest.usable[i] && (o.force || !fs::exists(FeaturePath(o, ingest.names[i])))) todo.push_back(i);
+  }
+  if (todo.empty()) {
+    Log(o, "features: done already");
+    return false;
+  }
+  const auto start = Clock::now();
+  fs::create_directories(o.workspace / "features");
+  ProgressCallback progress = StageProgress(o, "features");
+  std::atomic<size_t> next{0}, done{0};
+  std::mutex mutex;
+  std::vector<std::string> failures;
+  auto worker = [&] {
+    for (size_t k = next++; k < todo.size(); k = next++) {
+      const std::string& name = ingest.names[todo[k]];
+      try {
+        const ImageFeatures f = ExtractFeatures(images_dir / name, o.features);
+        WriteFeatures(f, FeaturePath(o, name));
+        std::lock_guard<std::mutex> lock(mutex);
+        ReportProgress(progress, static_cast<double>(++done) / todo.size(),
+                       name + ": " + std::to_string(f.keypoints.size()) + " features");
+      } catch (const Error& e) {
+        std::lock_guard<std::mutex> lock(mutex);
+        failures.push_back(e.what());
+        ++done;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < Threads(o); ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  for (const auto& f : failures) Log(o, "warning: " + f + "; image skipped");
+  RecordTiming(o, "features", std::chrono::duration<double>(Clock::now() - start).count());
+  return true;
+}
+
+bool RunMatchStage(const PipelineOptions& o) {
+  const fs::path out = o.workspace / "matches.bin";
+  if (fs::exists(out) && !o.force) {
+    Log(o, "match: done already (" + out.string() + ")");
+    return false;
+  }
+  const auto start = Clock::now();
+  IngestView ingest = LoadIngest(o);
+  const std::vector<ImageFeatures> features = LoadFeatures(o, &ingest);
+  // Horizontal GPS positions in a local frame for neighbourhoods.
+  std::vector<std::optional<Eigen::Vector2d>> gps(ingest.names.size());
+  std::optional<LocalFrame> frame;
+  for (size_t i = 0; i < gps.size(); ++i) {
+    if (!ingest.gps[i] || !ingest.usable[i]) continue;
+    if (!frame) frame.emplace(ingest.gps[i]->position);
+    gps[i] = frame->EnuFromGeodetic(ingest.gps[i]->position).head<2>();
+  }
+  // Unusable images take no part: give them a position so they do not force
+  // exhaustive matching, and drop their pairs.
+  std::vector<int> usable_index;
+  std::vector<std::optional<Eigen::Vector2d>> usable_gps;
+  for (size_t i = 0; i < gps.size(); ++i) {
+    if (!ingest.usable[i]) continue;
+    usable_index.push_back(static_cast<int>(i));
+    usable_gps.push_back(gps[i]);
+  }
+  MatchOptions mo = o.matching;
+  mo.num_threads = o.num_threads;
+  std::string strategy;
+  std::vector<std::pair<int, int>> pairs;
+  for (const auto& [a, b] : SelectPairs(usable_gps, mo, &strategy)) {
+    pairs.push_back({usable_index[a], usable_index[b]});
+  }
+  const std::vector<PairMatches> matches = MatchPairs(features, pairs, mo, StageProgress(o, "match"));
+  WriteMatches(matches, out);
+  json summary;
+  summary["strategy"] = strategy;
+  summary["candidate_pairs"] = pairs.size();
+  summary["verified_pairs"] = matches.size();
+  json per_image = json::array();
+  std::vector<int> pair_count(ingest.names.size(), 0), match_count(ingest.names.size(), 0);
+  for (const PairMatches& m : matches) {
+    ++pair_count[m.i];
+    ++pair_count[m.j];
+    match_count[m.i] += static_cast<int>(m.inliers.size());
+    match_count[m.j] += static_cast<int>(m.inliers.size());
+  }
+  for (size_t i = 0; i < ingest.names.size(); ++i) {
+    per_image.push_back({{"name", ingest.names[i]},
+                         {"features", features[i].keypoints.size()},
+                         {"verified_pairs", pair_count[i]},
+                         {"verified_matches", match_count[i]}});
+    if (ingest.usable[i] && pair_count[i] == 0) {
+      Log(o, "warning: " + ingest.names[i] + " overlaps no other image (no verified pair)");
+    }
+  }
+  summary["images"] = per_image;
+  WriteTextFileAtomically(o.workspace / "matches.json", summary.dump(2) + "\n");
+  RecordTiming(o, "match", std::chrono::duration<double>(Clock::now() - start).count());
+  return true;
+}
+
+bool RunReconstructStage(const PipelineOptions& o) {
+  const fs::path out_json = o.workspace / "reconstruction.json";
+  if (fs::exists(out_json) && !o.force) {
+    Log(o, "reconstruct: done already (" + out_json.string() + ")");
+    return false;
+  }
+  const auto start = Clock::now();
+  IngestView ingest = LoadIngest(o);
+  const std::vector<ImageFeatures> features = LoadFeatures(o, &ingest);
+  const std::vector<PairMatches> matches = ReadMatches(o.workspace / "matches.bin");
+  std::vector<int> camera_of_image;
+  for (size_t i = 0; i < ingest.names.size(); ++i) camera_of_image.push_back(std::max(0, ingest.group[i]));
+  MapperOptions mo = o.mapper;
+  mo.num_threads = o.num_threads;
+  mo.progress = StageProgress(o, "reconstruct");
+  MapperResult result = ReconstructIncremental(ingest.names, camera_of_image, ingest.cameras, features,
+                                               matches, mo);
+  // Registered images only in the COLMAP model.
+  SparseModel registered;
+  registered.cameras = result.model.cameras;
+  std::vector<int> remap(result.model.images.size(), -1);
+  for (size_t i = 0; i < result.model.images.size(); ++i) {
+    if (!result.model.images[i].registered) continue;
+    remap[i] = static_cast<int>(registered.images.size());
+    registered.images.push_back(result.model.images[i]);
+  }
+  registered.points = result.model.points;
+  for (Observation obs : result.model.observations) {
+    if (remap[obs.image] < 0) continue;
+    obs.image = remap[obs.image];
+    registered.observations.push_back(obs);
+  }
+  WriteColmapText(registered, o.workspace / "reconstruction");
+  json doc;
+  doc["initial_pair"] = result.initial_pair;
+  doc["tracks"] = result.num_tracks;
+  doc["dropped_inconsistent_tracks"] = result.dropped_inconsistent_tracks;
+  doc["global_adjustments"] = result.global_adjustments;
+  doc["registered"] = registered.images.size();
+  json images = json::array();
+  for (size_t i = 0; i < ingest.names.size(); ++i) {
+    json im = {{"name", ingest.names[i]}, {"registered", result.images[i].registered}};
+    if (!ingest.usable[i]) {
+      im["why_not"] = "unusable image (unreadable or undecodable)";
+    } else if (!result.images[i].registered) {
+      im["why_not"] = result.images[i].why_not;
+    }
+    images.push_back(im);
+  }
+  doc["images"] = images;
+  WriteTextFileAtomically(out_json, doc.dump(2) + "\n");
+  RecordTiming(o, "reconstruct", std::chrono::duration<double>(Clock::now() - start).count());
+  return true;
+}
+
+namespace {
+
+// Scales a working-resolution model to each image's full resolution: one
+// camera per (group, full size); f, cx, cy and observations scale about the
+// pixel-centre convention, distortion coefficients are unit-free.
+SparseModel ToFullResolution(const SparseModel& model, const IngestView& ingest) {
+  std::map<std::string, int> index_of_name;
+  for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
+  SparseModel out = model;
+  out.cameras.clear();
+  std::map<std::pair<int, double>, int> camera_of;
+  std::vector<double> scale_of_image(model.images.size(), 1.0);
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    const auto it = index_of_name.find(model.images[i].name);
+    const double s = it != index_of_name.end() ? ingest.scale[it->second] : 1.0;
+    scale_of_image[i] = s;
+    const int group = model.images[i].camera;
+    auto [c, inserted] = camera_of.emplace(std::make_pair(group, s), static_cast<int>(out.cameras.size()));
+    if (inserted) {
+      Camera cam = model.cameras[group];
+      cam.id = static_cast<int>(out.cameras.size()) + 1;
+      cam.width = static_cast<int>(std::lround(cam.width * s));
+      cam.height = static_cast<int>(std::lround(cam.height * s));
+      for (int k : cam.info().focal_params) cam.params[k] *= s;
+      for (int k : cam.info().principal_point_params) cam.params[k] = (cam.params[k] + 0.5) * s - 0.5;
+      out.cameras.push_back(cam);
+    }
+    out.images[i].camera = c->second;
+  }
+  for (Observation& obs : out.observations) {
+    const double s = scale_of_image[obs.image];
+    obs.xy = (obs.xy.array() + 0.5) * s - 0.5;
+  }
+  return out;
+}
+
+}  // namespace
+
+bool RunGeoreferenceStage(const PipelineOptions& o) {
+  const fs::path report_path = o.workspace / "report.json";
+  if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") && !o.force) {
+    Log(o, "georeference: done already (" + report_path.string() + ")");
+    return false;
+  }
+  const auto start = Clock::now();
+  IngestView ingest = LoadIngest(o);
+  const json recon = ReadJson(o.workspace / "reconstruction.json", "reconstruct");
+  SparseModel model = ReadColmapText(o.workspace / "reconstruction");
+  std::map<std::string, int> index_of_name;
+  for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
+
+  std::map<std::string, GpsFix> gps;
+  for (size_t i = 0; i < ingest.names.size(); ++i) {
+    if (ingest.gps[i]) gps[ingest.names[i]] = *ingest.gps[i];
+  }
+  // Control files measure full-resolution pixels: convert to working ones.
+  auto load_gcp = [&](const fs::path& path) -> std::optional<GcpFile> {
+    if (path.empty()) return std::nullopt;
+    GcpFile file = ReadGcpFile(path, o.gcp_pixel_origin);
+    for (GroundPoint& p : file.points) {
+      for (GcpMeasurement& m : p.measurements) {
+        const auto it = index_of_name.find(m.image);
+        if (it == index_of_name.end()) continue;
+        m.xy_px = (m.xy_px.array() + 0.5) / ingest.scale[it->second] - 0.5;
+      }
+    }
+    return file;
+  };
+  const std::optional<GcpFile> control = load_gcp(o.gcp);
+  const std::optional<GcpFile> checks = load_gcp(o.checkpoints);
+
+  json report;
+  const bool can_georeference = !gps.empty() || (control && !control->points.empty());
+  if (can_georeference && !model.images.empty()) {
+    GeoreferenceOptions go = o.georef;
+    go.bundle.num_threads = o.num_threads;
+    go.progress = StageProgress(o, "georeference");
+    GeoreferenceReport georef = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
+                                                      checks ? &*checks : nullptr, go);
+    for (const auto& w : georef.warnings) Log(o, "warning: " + w);
+    report = GeoreferenceReportJson(georef, model);
+    // Cameras in the output CRS.
+    const LocalFrame frame(georef.enu_origin);
+    const Crs crs = Crs::FromString(georef.crs);
+    std::ostringstream csv;
+    csv << std::setprecision(12) << "name,x,y,z,lat_deg,lon_deg,h_ellipsoidal_m,gps_de_m,gps_dn_m,gps_du_m\n";
+    for (const Image& image : model.images) {
+      const Geodetic g = frame.GeodeticFromEnu(image.pose.centre_in_world);
+      const Eigen::Vector3d xyz = crs.FromGeodetic(g);
+      csv << image.name << "," << xyz.x() << "," << xyz.y() << "," << xyz.z() << "," << g.lat_deg
+          << "," << g.lon_deg << "," << g.h_m;
+      if (image.gps_prior) {
+        const Eigen::Vector3d d = image.pose.centre_in_world - image.gps_prior->position;
+        csv << "," << d.x() << "," << d.y() << "," << d.z();
+      } else {
+        csv << ",,,";
+      }
+      csv << "\n";
+    }
+    WriteTextFileAtomically(o.workspace / "cameras.csv", csv.str());
+  } else {
+    Log(o, "warning: no GPS and no control points: the survey is not georeferenced "
+           "(arbitrary frame and scale)");
+    report["crs"] = nullptr;
+    report["georeferenced"] = false;
+    report["adjustment"]["final_rms_px"] = 0.0;
+  }
+  report["georeferenced"] = can_georeference && !model.images.empty();
+  report["pixels"] = "sparse/ holds full-resolution pixels; adjustment figures are at the working "
+                     "resolution (longer side " + std::to_string(o.features.max_dimension) + " px)";
+  // Images.
+  json images = json::array();
+  int registered = 0;
+  for (const json& im : recon.at("images")) {
+    json entry = im;
+    const auto it = index_of_name.find(im.at("name").get<std::string>());
+    entry["gps"] = it != index_of_name.end() && ingest.gps[it->second].has_value();
+    registered += im.at("registered").get<bool>() ? 1 : 0;
+    images.push_back(entry);
+  }
+  report["images"] = {{"total", ingest.names.size()}, {"registered", registered}, {"per_image", images}};
+  report["reconstruction"] = {{"initial_pair", recon.value("initial_pair", "")},
+                              {"tracks", recon.value("tracks", 0)}};
+  if (fs::exists(o.workspace / "matches.json")) {
+    const json m = json::parse(ReadTextFile(o.workspace / "matches.json"));
+    report["matching"] = {{"strategy", m.value("strategy", "")},
+                          {"candidate_pairs", m.value("candidate_pairs", 0)},
+                          {"verified_pairs", m.value("verified_pairs", 0)},
+                          {"per_image", m.value("images", json::array())}};
+  }
+  report["camera_groups"] = ingest.raw.at("groups");
+  report["ingest_warnings"] = ingest.raw.value("warnings", json::array());
+
+  WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
+  RecordTiming(o, "georeference", std::chrono::duration<double>(Clock::now() - start).count());
+  if (fs::exists(o.workspace / "timings.json")) {
+    report["timings"] = json::parse(ReadTextFile(o.workspace / "timings.json"));
+  }
+  WriteTextFileAtomically(report_path, report.dump(2) + "\n");
+  return true;
+}
+
+void RunPipeline(const PipelineOptions& o) {
+  RunIngestStage(o);
+  RunFeatureStage(o);
+  RunMatchStage(o);
+  RunReconstructStage(o);
+  RunGeoreferenceStage(o);
+}
+
+}  // namespace aerotri

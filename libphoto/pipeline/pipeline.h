@@ -1,0 +1,69 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// The photo pipeline over a workspace folder. Each stage reads what earlier
+// stages wrote, writes its product atomically, and is skipped when its
+// product exists (unless force), so an interrupted run resumes:
+//
+//   ingest       ingest.json            EXIF / XMP, camera groups, GPS, focal
+//   features     features/<image>.sift  SIFT at the working resolution
+//   match        matches.bin, matches.json   verified pairs, overlap summary
+//   reconstruct  reconstruction/ (COLMAP text, arbitrary frame, working px)
+//                + reconstruction.json  per-image registration
+//   georeference sparse/ (COLMAP text, ENU metres, full-resolution pixels),
+//                cameras.csv (positions in the output CRS), report.json
+//
+// Every stage records its wall time and the process's peak memory in
+// timings.json.
+
+#include <filesystem>
+#include <string>
+
+#include "georef/gcp_file.h"
+#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/features/features.h"
+#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/matching/matching.h"
+#include "libphoto/sfm/incremental_mapper.h"
+
+namespace aerotri {
+
+struct PipelineOptions {
+  std::filesystem::path images_dir;  // needed by ingest (and features)
+  std::filesystem::path workspace;
+  bool force = false;  // redo stages whose product exists
+  int num_threads = 0;
+
+  // ingest
+  AltitudeReference gps_altitude = AltitudeReference::kEgm96;
+  double gps_sigma_h_m = 3.0;
+  double gps_sigma_v_m = 5.0;
+  std::filesystem::path gps_csv;  // optional, overrides EXIF
+
+  FeatureOptions features;
+  MatchOptions matching;
+  MapperOptions mapper;
+
+  // georeference
+  std::filesystem::path gcp;          // optional
+  std::filesystem::path checkpoints;  // optional
+  PixelOrigin gcp_pixel_origin = PixelOrigin::kCorner;
+  GeoreferenceOptions georef;
+
+  // One callback per stage name ("ingest", "features", ...); may be null.
+  std::function<ProgressCallback(const std::string& stage)> progress;
+  // Messages for the user (warnings, stage skipped); may be null.
+  std::function<void(const std::string&)> log;
+};
+
+// Each returns true when it ran, false when skipped (product present).
+bool RunIngestStage(const PipelineOptions& options);
+bool RunFeatureStage(const PipelineOptions& options);
+bool RunMatchStage(const PipelineOptions& options);
+bool RunReconstructStage(const PipelineOptions& options);
+bool RunGeoreferenceStage(const PipelineOptions& options);
+
+// All stages in order.
+void RunPipeline(const PipelineOptions& options);
+
+}  // namespace aerotri

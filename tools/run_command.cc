@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// aerotri run IMAGES --output DIR, and the stages as subcommands.
+#include <memory>
+
+#include "libphoto/base/error.h"
+#include "libphoto/pipeline/pipeline.h"
+#include "tools/commands.h"
+
+namespace aerotri {
+namespace {
+
+void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
+  if (images_positional) {
+    cmd->add_option("images", a->images_dir, "Folder of photos (.jpg, .jpeg, .tif)")
+        ->required()->check(CLI::ExistingDirectory);
+  }
+  cmd->add_option("--output,-o", a->output, "Workspace / output folder")->required();
+  cmd->add_flag("--force", a->force, "Redo stages whose product exists (default: resume)");
+  cmd->add_option("--threads", a->threads, "Threads (0 = all cores)")->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--gps-altitude", a->gps_altitude,
+                  "Reference of EXIF / CSV GPS altitudes: egm96 (EXIF's 'above sea level') or ellipsoid")
+      ->check(CLI::IsMember({"egm96", "ellipsoid"}))->capture_default_str();
+  cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gps-csv", a->gps_csv, "Camera positions name,lat,lon,alt[,sigma_h,sigma_v]; overrides EXIF");
+  cmd->add_option("--max-dimension", a->max_dimension,
+                  "Working resolution: longer image side (pixels) for features and adjustment")
+      ->check(CLI::Range(200, 20000))->capture_default_str();
+  cmd->add_option("--max-features", a->max_features, "Features per image (spread over the image)")
+      ->check(CLI::Range(100, 200000))->capture_default_str();
+  cmd->add_option("--gps-neighbours", a->gps_neighbours, "Images matched with each image's nearest GPS neighbours")
+      ->check(CLI::Range(1, 1000))->capture_default_str();
+  cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
+  cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format); never used in the adjustment");
+  cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "corner (ODM/COLMAP) or centre")
+      ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
+  cmd->add_option("--gcp-sigma-h", a->gcp_sigma_h_m, "Control horizontal sigma (metres) when the file gives none")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
+}
+
+}  // namespace
+
+void RegisterRunCommands(CLI::App& app, CommandAction* run) {
+  struct Stage {
+    const char* name;
+    const char* help;
+    bool needs_images;
+  };
+  const Stage stages[] = {
+      {"run", "Photos to an adjusted, georeferenced sparse survey: ingest, features, match, "
+              "reconstruct, georeference (each stage resumes)", true},
+      {"ingest", "Read EXIF / XMP of a folder of photos into OUTPUT/ingest.json", true},
+      {"features", "Extract SIFT features of the ingested photos (OUTPUT/features/)", false},
+      {"match", "Select, match and verify image pairs (OUTPUT/matches.bin)", false},
+      {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false},
+      {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
+                       "OUTPUT/report.json", false},
+  };
+  for (const Stage& s : stages) {
+    auto a = std::make_shared<RunArgs>();
+    a->stage = s.name;
+    CLI::App* cmd = app.add_subcommand(s.name, s.help);
+    AddPhotoOptions(cmd, a.get(), s.needs_images);
+    cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
+  }
+}
+
+int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
+  PipelineOptions o;
+  o.images_dir = a.images_dir;
+  o.workspace = a.output;
+  o.force = a.force;
+  o.num_threads = a.threads;
+  o.gps_altitude = a.gps_altitude == "ellipsoid" ? AltitudeReference::kEllipsoid : AltitudeReference::kEgm96;
+  o.gps_sigma_h_m = a.gps_sigma_h_m;
+  o.gps_sigma_v_m = a.gps_sigma_v_m;
+  o.gps_csv = a.gps_csv;
+  o.features.max_dimension = a.max_dimension;
+  o.features.max_features = a.max_features;
+  o.matching.gps_neighbours = a.gps_neighbours;
+  o.gcp = a.gcp;
+  o.checkpoints = a.checkpoints;
+  o.gcp_pixel_origin = a.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
+  o.georef.output_crs = a.crs;
+  o.georef.gcp_sigma_h_m = a.gcp_sigma_h_m;
+  o.georef.gcp_sigma_v_m = a.gcp_sigma_v_m;
+  o.georef.bundle.loss = LossType::kHuber;
+  o.georef.bundle.loss_scale_px = 1.0;
+  o.georef.bundle.outlier_threshold_px = 4.0;
+  o.georef.bundle.min_images_to_refine_intrinsics = 3;
+  o.progress = [&ctx](const std::string& stage) { return ctx.Progress(stage); };
+  o.log = [&ctx](const std::string& message) {
+    if (message.rfind("warning: ", 0) == 0) {
+      ctx.Warn(message.substr(9));
+    } else {
+      ctx.Info(message);
+    }
+  };
+  const std::string& s = a.stage;
+  if (s == "run") {
+    RunPipeline(o);
+  } else if (s == "ingest") {
+    RunIngestStage(o);
+  } else if (s == "features") {
+    RunFeatureStage(o);
+  } else if (s == "match") {
+    RunMatchStage(o);
+  } else if (s == "reconstruct") {
+    RunReconstructStage(o);
+  } else if (s == "georeference") {
+    RunGeoreferenceStage(o);
+  }
+  if (s == "run" || s == "georeference") {
+    const auto report = std::filesystem::path(a.output) / "report.json";
+    *ctx.out << "report: " << report.string() << "\n";
+  }
+  return 0;
+}
+
+}  // namespace aerotri
