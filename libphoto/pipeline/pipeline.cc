@@ -397,8 +397,15 @@ bool RunReconstructStage(const PipelineOptions& o) {
   MapperOptions mo = o.mapper;
   mo.num_threads = o.num_threads;
   mo.progress = StageProgress(o, "reconstruct");
+  std::vector<std::optional<Eigen::Vector3d>> gps(ingest.names.size());
+  std::optional<LocalFrame> frame;
+  for (size_t i = 0; i < gps.size(); ++i) {
+    if (!ingest.gps[i]) continue;
+    if (!frame) frame.emplace(ingest.gps[i]->position);
+    gps[i] = frame->EnuFromGeodetic(ingest.gps[i]->position);
+  }
   MapperResult result = ReconstructIncremental(ingest.names, camera_of_image, ingest.cameras, features,
-                                               matches, mo);
+                                               matches, mo, gps);
   // Registered images only in the COLMAP model.
   SparseModel registered;
   registered.cameras = result.model.cameras;

@@ -9,6 +9,7 @@
 
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/base/error.h"
+#include "georef/similarity.h"
 #include "libphoto/sfm/tracks.h"
 #include "libphoto/sfm/triangulation.h"
 
@@ -21,8 +22,10 @@ class Mapper {
  public:
   Mapper(const std::vector<std::string>& names, const std::vector<int>& camera_of_image,
          const std::vector<Camera>& cameras, const std::vector<ImageFeatures>& features,
-         const std::vector<PairMatches>& matches, const MapperOptions& options)
-      : features_(features), matches_(matches), options_(options) {
+         const std::vector<PairMatches>& matches, const MapperOptions& options,
+         const std::vector<std::optional<Eigen::Vector3d>>& gps_enu)
+      : features_(features), matches_(matches), options_(options), gps_(gps_enu) {
+    gps_.resize(names.size());
     model_.cameras = cameras;
     for (size_t i = 0; i < names.size(); ++i) {
       Image image;
@@ -82,6 +85,11 @@ class Mapper {
       if (n <= 8 || n >= last_ba + std::max(2, last_ba / 4)) {
         GlobalAdjust(false);
         last_ba = n;
+      }
+    }
+    if (options_.gps_rescue) {
+      while (RescueWithGps()) {
+        GlobalAdjust(false);
       }
     }
     GlobalAdjust(true);
@@ -337,6 +345,239 @@ class Mapper {
     return true;
   }
 
+
+  // Guided registration of images left out, from their GPS position (see the
+  // header). Returns true when at least one image registered.
+  bool RescueWithGps() {
+    // Similarity from the model frame to the GPS frame.
+    std::vector<Eigen::Vector3d> from, to;
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      if (model_.images[i].registered && gps_[i]) {
+        from.push_back(model_.images[i].pose.centre_in_world);
+        to.push_back(*gps_[i]);
+      }
+    }
+    if (from.size() < 3) return false;
+    const auto fit = FitSimilarityRobust(from, to, 15.0, 3);
+    if (!fit || fit->num_inliers < 3) return false;
+    const Similarity model_from_gps = fit->transform.Inverse();
+    bool any = false;
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      if (model_.images[i].registered || !gps_[i] || features_[i].keypoints.empty()) continue;
+      if (RescueImage(static_cast<int>(i), model_from_gps, fit->transform,
+                      std::max(10.0, 5.0 * fit->rms_m))) {
+        any = true;
+        Report();
+      }
+    }
+    return any;
+  }
+
+  // Attitude of the nearest registered images in capture order (index order).
+  std::optional<Eigen::Quaterniond> NeighbourAttitude(int image) const {
+    const int n = static_cast<int>(model_.images.size());
+    for (int d = 1; d < n; ++d) {
+      const int before = image - d, after = image + d;
+      const bool b = before >= 0 && model_.images[before].registered;
+      const bool a = after < n && model_.images[after].registered;
+      if (b && a) {
+        return model_.images[before].pose.cam_from_world.slerp(0.5, model_.images[after].pose.cam_from_world);
+      }
+      if (b) return model_.images[before].pose.cam_from_world;
+      if (a) return model_.images[after].pose.cam_from_world;
+    }
+    return std::nullopt;
+  }
+
+  bool RescueImage(int image, const Similarity& model_from_gps, const Similarity& gps_from_model,
+                   double max_gps_distance_m) {
+    const auto attitude = NeighbourAttitude(image);
+    if (!attitude) return false;
+    Pose pose;
+    pose.cam_from_world = *attitude;
+    pose.centre_in_world = model_from_gps.Apply(*gps_[image]);
+    const Camera& camera = model_.cameras[model_.images[image].camera];
+    const ImageFeatures& f = features_[image];
+    const cv::Mat desc = f.FloatDescriptors();
+    // Keypoints bucketed on a grid for radius queries.
+    constexpr double kCell = 32.0;
+    const int gw = static_cast<int>(f.width / kCell) + 1, gh = static_cast<int>(f.height / kCell) + 1;
+    std::vector<std::vector<int>> grid(static_cast<size_t>(gw) * gh);
+    for (size_t k = 0; k < f.keypoints.size(); ++k) {
+      const int cx = std::clamp(static_cast<int>(f.keypoints[k].x / kCell), 0, gw - 1);
+      const int cy = std::clamp(static_cast<int>(f.keypoints[k].y / kCell), 0, gh - 1);
+      grid[static_cast<size_t>(cy) * gw + cx].push_back(static_cast<int>(k));
+    }
+    // A descriptor per live track: that of its first registered element.
+    std::vector<std::pair<int, int>> reference(model_.points.size(), {-1, -1});
+    for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
+      const int p = point_of_track_[t];
+      if (p < 0) continue;
+      for (const TrackElement& e : tracks_.tracks[t]) {
+        if (model_.images[e.image].registered) {
+          reference[p] = {e.image, e.feature};
+          break;
+        }
+      }
+    }
+    std::map<int, cv::Mat> ref_desc;
+    auto descriptor_of = [&](int img, int feat) {
+      auto it = ref_desc.find(img);
+      if (it == ref_desc.end()) it = ref_desc.emplace(img, features_[img].FloatDescriptors()).first;
+      return it->second.row(feat);
+    };
+    // Visible points and their predicted pixels.
+    struct Predicted {
+      int point;
+      Eigen::Vector2d xy;
+    };
+    std::vector<Predicted> visible;
+    const double search = options_.rescue_search_radius_px;
+    for (size_t p = 0; p < model_.points.size(); ++p) {
+      if (reference[p].first < 0) continue;
+      const Eigen::Vector3d pc = pose.CamFromWorld(model_.points[p].position);
+      if (pc.z() <= 0) continue;
+      const Eigen::Vector2d xy = camera.ImageFromCamera(pc);
+      if (xy.x() < -search || xy.y() < -search || xy.x() > f.width + search || xy.y() > f.height + search) continue;
+      visible.push_back({static_cast<int>(p), xy});
+    }
+    // Candidates of a predicted pixel within radius, best first: (distance², feature).
+    auto candidates = [&](const Eigen::Vector2d& xy, double radius, const cv::Mat& d) {
+      std::vector<std::pair<double, int>> out;
+      const int x0 = static_cast<int>(std::floor((xy.x() - radius) / kCell));
+      const int x1 = static_cast<int>(std::floor((xy.x() + radius) / kCell));
+      const int y0 = static_cast<int>(std::floor((xy.y() - radius) / kCell));
+      const int y1 = static_cast<int>(std::floor((xy.y() + radius) / kCell));
+      for (int cy = std::max(0, y0); cy <= std::min(gh - 1, y1); ++cy) {
+        for (int cx = std::max(0, x0); cx <= std::min(gw - 1, x1); ++cx) {
+          for (int k : grid[static_cast<size_t>(cy) * gw + cx]) {
+            const double dx = f.keypoints[k].x - xy.x(), dy = f.keypoints[k].y - xy.y();
+            if (dx * dx + dy * dy > radius * radius) continue;
+            out.push_back({cv::norm(desc.row(k), d, cv::NORM_L2SQR), k});
+          }
+        }
+      }
+      std::sort(out.begin(), out.end());
+      return out;
+    };
+    // Hough vote on the image offset between prediction and truth: GPS and
+    // attitude errors mostly shift the whole image.
+    Eigen::Vector2d offset = Eigen::Vector2d::Zero();
+    {
+      constexpr double kBin = 8.0;
+      const int nb = static_cast<int>(2 * search / kBin) + 1;
+      std::vector<float> votes(static_cast<size_t>(nb) * nb, 0.0f);
+      for (const Predicted& v : visible) {
+        const auto c = candidates(v.xy, search, descriptor_of(reference[v.point].first, reference[v.point].second));
+        for (size_t r = 0; r < c.size() && r < 2; ++r) {
+          const Keypoint& k = f.keypoints[c[r].second];
+          const int bx = static_cast<int>((k.x - v.xy.x() + search) / kBin);
+          const int by = static_cast<int>((k.y - v.xy.y() + search) / kBin);
+          if (bx >= 0 && by >= 0 && bx < nb && by < nb) votes[static_cast<size_t>(by) * nb + bx] += 1.0f;
+        }
+      }
+      float best = 0.0f;
+      for (int by = 1; by + 1 < nb; ++by) {
+        for (int bx = 1; bx + 1 < nb; ++bx) {
+          float sum = 0.0f;
+          for (int dy = -1; dy <= 1; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) sum += votes[static_cast<size_t>(by + dy) * nb + bx + dx];
+          }
+          if (sum > best) {
+            best = sum;
+            offset = Eigen::Vector2d((bx + 0.5) * kBin - search, (by + 0.5) * kBin - search);
+          }
+        }
+      }
+    }
+    bool refined_pose = false;
+    for (double radius : {40.0, 3.0 * options_.max_reprojection_px}) {
+      std::vector<cv::Point3d> world;
+      std::vector<cv::Point2d> rays;
+      std::vector<std::pair<int, int>> pairs;  // (feature, point)
+      std::vector<char> used(f.keypoints.size(), 0);
+      for (const Predicted& v0 : visible) {
+        const int p = v0.point;
+        Eigen::Vector2d xy = v0.xy + offset;
+        if (refined_pose) {
+          const Eigen::Vector3d pc = pose.CamFromWorld(model_.points[p].position);
+          if (pc.z() <= 0) continue;
+          xy = camera.ImageFromCamera(pc);
+        }
+        const auto c = candidates(xy, radius, descriptor_of(reference[p].first, reference[p].second));
+        if (c.empty()) continue;
+        const double best = c[0].first;
+        const double second = c.size() > 1 ? c[1].first : 1e9;
+        const int best_k = c[0].second;
+        if (best_k < 0 || used[best_k] || !(best < 0.85 * 0.85 * second)) continue;
+        const auto n = Normalized(image, best_k);
+        if (!n) continue;
+        used[best_k] = 1;
+        const Eigen::Vector3d& x = model_.points[p].position;
+        world.emplace_back(x.x(), x.y(), x.z());
+        rays.emplace_back(n->x(), n->y());
+        pairs.push_back({best_k, p});
+      }
+      ImageRegistration& st = status_[image];
+      st.correspondences = static_cast<int>(world.size());
+      if (static_cast<int>(world.size()) < options_.min_pnp_inliers) {
+        st.why_not = "guided matching from GPS found " + std::to_string(world.size()) +
+                     " 2D-3D correspondences";
+        return false;
+      }
+      cv::Mat rvec, tvec;
+      std::vector<int> inliers;
+      const double threshold = options_.max_reprojection_px / Focal(image);
+      if (!cv::solvePnPRansac(world, rays, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec, false,
+                              2000, threshold, 0.9999, inliers, cv::SOLVEPNP_AP3P) ||
+          static_cast<int>(inliers.size()) < options_.min_pnp_inliers || inliers.size() < 0.3 * world.size()) {
+        st.why_not = "guided matching from GPS: PnP found " + std::to_string(inliers.size()) +
+                     " inliers of " + std::to_string(world.size());
+        return false;
+      }
+      std::vector<cv::Point3d> wi;
+      std::vector<cv::Point2d> ri;
+      for (int k : inliers) {
+        wi.push_back(world[k]);
+        ri.push_back(rays[k]);
+      }
+      cv::solvePnPRefineLM(wi, ri, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec);
+      cv::Mat rm;
+      cv::Rodrigues(rvec, rm);
+      Eigen::Matrix3d R;
+      Eigen::Vector3d T;
+      cv::cv2eigen(rm, R);
+      cv::cv2eigen(tvec, T);
+      pose = Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+      refined_pose = true;
+      if (radius > 3.0 * options_.max_reprojection_px) continue;  // second, tight pass
+      // The pose found must agree with the GPS position it started from.
+      const double gps_distance = (gps_from_model.Apply(pose.centre_in_world) - *gps_[image]).norm();
+      if (gps_distance > max_gps_distance_m) {
+        st.why_not = "guided matching from GPS: the pose found lies " + std::to_string(gps_distance) +
+                     " m from the GPS position";
+        return false;
+      }
+      // Accept: observations of the inliers (checked with the full camera).
+      Image& img = model_.images[image];
+      img.pose = pose;
+      img.registered = true;
+      st.registered = true;
+      st.inliers = static_cast<int>(inliers.size());
+      st.why_not.clear();
+      for (int k : inliers) {
+        const auto [feat, p] = pairs[k];
+        const Eigen::Vector3d pc = pose.CamFromWorld(model_.points[p].position);
+        const Eigen::Vector2d xy = Pixel(image, feat);
+        if (pc.z() > 0 && (camera.ImageFromCamera(pc) - xy).norm() <= options_.max_reprojection_px) {
+          model_.observations.push_back({image, p, xy, feat});
+        }
+      }
+      return true;
+    }
+    return false;
+  }
+
   void GlobalAdjust(bool final_round) {
     BundleOptions o;
     o.loss = LossType::kHuber;
@@ -404,6 +645,7 @@ class Mapper {
   std::vector<ImageRegistration> status_;
   std::vector<int> failures_;
   std::map<int, bool> has_pair_;
+  std::vector<std::optional<Eigen::Vector3d>> gps_;
   int adjustments_ = 0;
 };
 
@@ -414,9 +656,10 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
                                     const std::vector<Camera>& cameras,
                                     const std::vector<ImageFeatures>& features,
                                     const std::vector<PairMatches>& matches,
-                                    const MapperOptions& options) {
+                                    const MapperOptions& options,
+                                    const std::vector<std::optional<Eigen::Vector3d>>& gps_enu) {
   AEROTRI_CHECK(names.size() == camera_of_image.size() && names.size() == features.size());
-  Mapper mapper(names, camera_of_image, cameras, features, matches, options);
+  Mapper mapper(names, camera_of_image, cameras, features, matches, options, gps_enu);
   return mapper.Run();
 }
 

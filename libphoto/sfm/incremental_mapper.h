@@ -12,8 +12,14 @@
 //     model has grown by a quarter, self-calibrating focal length and radial
 //     distortion once enough images are in, then again at the end with every
 //     intrinsic parameter.
-// Images that fail are retried after each adjustment; the result says, per
-// image, whether it registered and why not.
+// Images that fail are retried after each adjustment. Images still left out
+// but with a GPS position are then rescued by guided matching: the model is
+// related to the GPS frame by a robust similarity, the image's pose predicted
+// from its GPS position and its capture-order neighbours' attitude, the
+// model's points projected into it and matched only to features near their
+// predicted position (which lets weakly textured frames, such as bare
+// fields, register), then PnP as usual. The result says, per image, whether
+// it registered and why not.
 
 #include <optional>
 #include <string>
@@ -27,11 +33,15 @@
 namespace aerotri {
 
 struct MapperOptions {
-  int min_pnp_inliers = 20;
+  int min_pnp_inliers = 15;
   double max_reprojection_px = 4.0;         // working resolution
   double min_triangulation_angle_deg = 1.5;
   double init_min_median_angle_deg = 2.0;
   int init_candidates = 40;
+  // Guided matching of images left out (needs GPS).
+  bool gps_rescue = true;
+  double rescue_search_radius_px = 250.0;  // offset search, working resolution
+
   int num_threads = 0;
   ProgressCallback progress;
 };
@@ -59,6 +69,7 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
                                     const std::vector<Camera>& cameras,
                                     const std::vector<ImageFeatures>& features,
                                     const std::vector<PairMatches>& matches,
-                                    const MapperOptions& options);
+                                    const MapperOptions& options,
+                                    const std::vector<std::optional<Eigen::Vector3d>>& gps_enu = {});
 
 }  // namespace aerotri
