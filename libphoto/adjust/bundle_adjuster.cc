@@ -287,8 +287,9 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     if (image_used[i]) ++images_of_camera[model->images[i].camera];
   }
   for (size_t c = 0; c < model->cameras.size(); ++c) {
-    if (images_of_camera[c] >= options.min_images_to_refine_intrinsics) {
-      refined[c] = RefinedParams(model->cameras[c], options);
+    refined[c] = RefinedParams(model->cameras[c], options);
+    if (images_of_camera[c] < options.min_images_to_refine_intrinsics && !refined[c].empty()) {
+      refined[c] = model->cameras[c].info().focal_params;
     }
   }
   auto constant_params = [&](int c) {

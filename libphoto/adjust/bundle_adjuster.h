@@ -65,8 +65,9 @@ struct BundleOptions {
 
   IntrinsicsRefinement refine_intrinsics = IntrinsicsRefinement::kAll;
   std::vector<std::string> refine_params;  // for kList
-  // A camera group seen by fewer adjusted images than this keeps its
-  // intrinsics fixed (too little geometry to calibrate it).
+  // A camera group seen by fewer adjusted images than this refines its focal
+  // length only (too little geometry to calibrate the lens; holding a wrong
+  // EXIF focal length fixed would bend the whole block).
   int min_images_to_refine_intrinsics = 1;
 
   bool use_gps_priors = true;

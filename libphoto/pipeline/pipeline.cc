@@ -171,6 +171,40 @@ bool RunIngestStage(const PipelineOptions& o) {
   std::map<std::string, int> group_of_key;
   json groups = json::array();
   int with_gps = 0;
+  std::vector<std::pair<size_t, ImageMetadata>> pending_optics;
+  // The group of a camera key, created with its EXIF focal estimate.
+  auto GroupFor = [&](const std::string& key, const ImageMetadata& m, int ww, int wh) {
+    auto [it, inserted] = group_of_key.emplace(key, static_cast<int>(groups.size()));
+    if (inserted) {
+      ExifOptics optics;
+      optics.make = m.make;
+      optics.model = m.model;
+      optics.focal_mm = m.focal_mm;
+      optics.focal_35mm = m.focal_35mm;
+      optics.focal_plane_px_per_mm = m.focal_plane_px_per_mm;
+      optics.exif_pixel_width = m.exif_pixel_width;
+      optics.width = m.width;
+      optics.height = m.height;
+      const FocalEstimate focal = FocalFromExif(optics);
+      const Camera c = Camera::Create(CameraModelId::kBrown, focal.focal_px * ww / m.width, ww, wh);
+      json g;
+      g["key"] = key;
+      g["make"] = m.make;
+      g["model"] = m.model;
+      g["working_width"] = ww;
+      g["working_height"] = wh;
+      g["camera_model"] = "BROWN";
+      g["params"] = c.params;
+      g["focal_source"] = focal.source;
+      g["images"] = 0;
+      groups.push_back(g);
+      if (focal.source.rfind("EXIF focal length", 0) != 0) {
+        warnings.push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
+      }
+    }
+    groups[it->second]["images"] = groups[it->second]["images"].get<int>() + 1;
+    return it->second;
+  };
   for (size_t k = 0; k < files.size(); ++k) {
     const std::string name = files[k].filename().string();
     json im;
@@ -226,43 +260,47 @@ bool RunIngestStage(const PipelineOptions& o) {
       warnings.push_back(name + ": no GPS position (EXIF or CSV)");
     }
 
-    // Camera group: one physical camera and one working image size.
+    // Camera group: one physical camera and one working image size. A photo
+    // that says nothing of its camera joins the group of its size when there
+    // is exactly one (a photo of the same flight that lost its EXIF); that
+    // is decided once every photo has been read.
+    const bool anonymous = m.make.empty() && m.model.empty() && !m.focal_mm && !m.focal_35mm;
     std::ostringstream key;
     key << m.make << "|" << m.model << "|" << std::setprecision(4) << m.focal_mm.value_or(0.0) << "|"
         << ww << "x" << wh;
-    auto [it, inserted] = group_of_key.emplace(key.str(), static_cast<int>(groups.size()));
-    if (inserted) {
-      ExifOptics optics;
-      optics.make = m.make;
-      optics.model = m.model;
-      optics.focal_mm = m.focal_mm;
-      optics.focal_35mm = m.focal_35mm;
-      optics.focal_plane_px_per_mm = m.focal_plane_px_per_mm;
-      optics.exif_pixel_width = m.exif_pixel_width;
-      optics.width = m.width;
-      optics.height = m.height;
-      const FocalEstimate focal = FocalFromExif(optics);
-      const double f_work = focal.focal_px * ww / m.width;
-      Camera c = Camera::Create(CameraModelId::kBrown, f_work, ww, wh);
-      json g;
-      g["key"] = key.str();
-      g["make"] = m.make;
-      g["model"] = m.model;
-      g["working_width"] = ww;
-      g["working_height"] = wh;
-      g["camera_model"] = "BROWN";
-      g["params"] = c.params;
-      g["focal_source"] = focal.source;
-      g["images"] = 0;
-      groups.push_back(g);
-      if (focal.source.rfind("EXIF focal length", 0) != 0) {
-        warnings.push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
-      }
+    if (anonymous) {
+      im["group"] = -1;
+      pending_optics.push_back({images.size(), m});
+      images.push_back(im);
+      ReportProgress(progress, static_cast<double>(k + 1) / files.size(), name);
+      continue;
     }
-    groups[it->second]["images"] = groups[it->second]["images"].get<int>() + 1;
-    im["group"] = it->second;
+    const int group = GroupFor(key.str(), m, ww, wh);
+    im["group"] = group;
     images.push_back(im);
     ReportProgress(progress, static_cast<double>(k + 1) / files.size(), name);
+  }
+  for (const auto& [index, m] : pending_optics) {
+    json& im = images[index];
+    const int ww = im["working_width"], wh = im["working_height"];
+    int match = -1, count = 0;
+    for (size_t g = 0; g < groups.size(); ++g) {
+      if (groups[g]["working_width"] == ww && groups[g]["working_height"] == wh) {
+        match = static_cast<int>(g);
+        ++count;
+      }
+    }
+    if (count == 1) {
+      im["group"] = match;
+      groups[match]["images"] = groups[match]["images"].get<int>() + 1;
+      warnings.push_back(im["name"].get<std::string>() + ": no EXIF camera information; assumed to be the " +
+                         groups[match]["make"].get<std::string>() + " " +
+                         groups[match]["model"].get<std::string>() + " of the other photos of this size");
+    } else {
+      std::ostringstream key;
+      key << "unknown camera|" << ww << "x" << wh;
+      im["group"] = GroupFor(key.str(), m, ww, wh);
+    }
   }
   json doc;
   doc["images_dir"] = fs::absolute(o.images_dir).string();

@@ -1,0 +1,148 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The photo pipeline end to end on a small rendered survey with known truth,
+// with the kinds of bad input a surveyor's folder holds: a corrupt file, a
+// photo without GPS, a photo of somewhere else.
+#include "libphoto/pipeline/pipeline.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/io/colmap_text.h"
+#include "libphoto/simulate/render.h"
+#include "libphoto/simulate/survey_writer.h"
+#include "tests/test_util.h"
+
+namespace aerotri {
+namespace {
+namespace fs = std::filesystem;
+
+class Pipeline : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new testing::TempDir();
+    SimulationOptions sim;
+    sim.survey.seed = 5;
+    sim.survey.width = 640;
+    sim.survey.height = 480;
+    sim.survey.brown_params = {520.0, 322.0, 238.0, -0.08, 0.05, -0.01, 0.0005, -0.0003};
+    sim.survey.area_width_m = 50.0;
+    sim.survey.area_height_m = 36.0;
+    sim.survey.flight_height_m = 40.0;
+    sim.survey.num_tie_points = 500;
+    sim.survey.num_control_points = 6;
+    sim.survey.num_check_points = 4;
+    sim.georef.seed = 5;
+    WriteSyntheticSurvey(sim, dir_->path() / "survey");
+    truth_ = new SparseModel(ReadColmapText(dir_->path() / "survey" / "truth" / "model"));
+    // Bad inputs beside the good photos.
+    std::ofstream(dir_->path() / "survey" / "images" / "broken.jpg") << "not a jpeg at all";
+    // A photo without EXIF (so without GPS or focal length), between two
+    // photos of the first strip.
+    RenderOptions render;
+    Pose between = truth_->images[1].pose;
+    between.centre_in_world = 0.5 * (truth_->images[1].pose.centre_in_world + truth_->images[2].pose.centre_in_world);
+    cv::imwrite((dir_->path() / "survey" / "images" / "no_gps.jpg").string(),
+                RenderImage(truth_->cameras[0], between, render));
+    // A photo of somewhere else: the same camera 2 km east.
+    Pose far = truth_->images[0].pose;
+    far.centre_in_world.x() += 2000.0;
+    cv::imwrite((dir_->path() / "survey" / "images" / "elsewhere.jpg").string(),
+                RenderImage(truth_->cameras[0], far, render));
+  }
+  static void TearDownTestSuite() {
+    delete truth_;
+    delete dir_;
+  }
+  PipelineOptions Options(const std::string& workspace) const {
+    PipelineOptions o;
+    o.images_dir = dir_->path() / "survey" / "images";
+    o.workspace = dir_->path() / workspace;
+    o.gps_sigma_h_m = 2.0;
+    o.gps_sigma_v_m = 4.0;
+    o.georef.bundle.loss = LossType::kHuber;
+    o.georef.bundle.outlier_threshold_px = 4.0;
+    o.georef.bundle.min_images_to_refine_intrinsics = 3;
+    return o;
+  }
+  static testing::TempDir* dir_;
+  static SparseModel* truth_;
+};
+testing::TempDir* Pipeline::dir_ = nullptr;
+SparseModel* Pipeline::truth_ = nullptr;
+
+TEST_F(Pipeline, PhotosAndControlToACentimetreSurvey) {
+  PipelineOptions o = Options("ws_gcp");
+  o.gcp = dir_->path() / "survey" / "gcp_list.txt";
+  o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
+  RunPipeline(o);
+  const auto report = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  const int photos = static_cast<int>(truth_->images.size());
+  EXPECT_EQ(report["images"]["total"], photos + 3);
+  EXPECT_EQ(report["images"]["registered"], photos + 1);  // + the copy without GPS
+  std::map<std::string, nlohmann::json> per_image;
+  for (const auto& im : report["images"]["per_image"]) per_image[im["name"]] = im;
+  EXPECT_FALSE(per_image["broken.jpg"]["registered"].get<bool>());
+  EXPECT_NE(per_image["broken.jpg"]["why_not"].get<std::string>().find("unusable"), std::string::npos);
+  EXPECT_FALSE(per_image["elsewhere.jpg"]["registered"].get<bool>());
+  EXPECT_NE(per_image["elsewhere.jpg"]["why_not"].get<std::string>().find("no verified image pair"),
+            std::string::npos);
+  EXPECT_TRUE(per_image["no_gps.jpg"]["registered"].get<bool>());
+  EXPECT_FALSE(per_image["no_gps.jpg"]["gps"].get<bool>());
+  // Sub-pixel at the working resolution, and centimetres on check points
+  // (GSD 7.7 cm, targets clicked with 0.3 px noise, survey noise 1 cm).
+  EXPECT_LT(report["adjustment"]["final_rms_px"].get<double>(), 0.6);
+  EXPECT_GT(report["adjustment"]["final_rms_px"].get<double>(), 0.05);
+  EXPECT_EQ(report["check_points"]["count"], 4);
+  EXPECT_LT(report["check_points"]["rmse_3d_m"].get<double>(), 0.08) << report["adjustment"]["intrinsics"].dump() << report["adjustment"]["datum"] << report["adjustment"]["final_rms_px"];
+  EXPECT_GT(report["check_points"]["rmse_3d_m"].get<double>(), 0.003);
+  // The ingest warnings name the bad files.
+  const std::string warnings = report["ingest_warnings"].dump();
+  EXPECT_NE(warnings.find("broken.jpg"), std::string::npos);
+  EXPECT_NE(warnings.find("no_gps.jpg: no GPS"), std::string::npos);
+  // Full-resolution sparse model and cameras in the output CRS.
+  EXPECT_TRUE(fs::exists(o.workspace / "sparse" / "images.txt"));
+  EXPECT_TRUE(fs::exists(o.workspace / "cameras.csv"));
+  // A second run resumes: every stage is skipped.
+  EXPECT_FALSE(RunIngestStage(o));
+  EXPECT_FALSE(RunFeatureStage(o));
+  EXPECT_FALSE(RunMatchStage(o));
+  EXPECT_FALSE(RunReconstructStage(o));
+  EXPECT_FALSE(RunGeoreferenceStage(o));
+}
+
+TEST_F(Pipeline, GpsAloneKeepsCamerasWithinTheGpsNoise) {
+  PipelineOptions o = Options("ws_gps");
+  RunPipeline(o);
+  const auto report = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  const Geodetic origin{report["enu_origin"]["lat_deg"], report["enu_origin"]["lon_deg"],
+                        report["enu_origin"]["h_m"]};
+  const LocalFrame frame(origin), truth_frame({46.5, 7.5, 500.0});
+  const SparseModel model = ReadColmapText(o.workspace / "sparse");
+  std::map<std::string, Eigen::Vector3d> truth_centre;
+  for (const Image& image : truth_->images) {
+    truth_centre[image.name] = frame.EnuFromGeodetic(truth_frame.GeodeticFromEnu(image.pose.centre_in_world));
+  }
+  double sum_h = 0.0, sum_v = 0.0;
+  int n = 0;
+  for (const Image& image : model.images) {
+    const auto it = truth_centre.find(image.name);
+    if (it == truth_centre.end()) continue;
+    const Eigen::Vector3d d = image.pose.centre_in_world - it->second;
+    sum_h += d.head<2>().squaredNorm() / 2.0;
+    sum_v += d.z() * d.z();
+    ++n;
+  }
+  ASSERT_GT(n, 10);
+  // The datum of n GPS fixes of sigma 2 m / 4 m is good to about sigma /
+  // sqrt(n) (plus a little scale and tilt): well inside one sigma, not zero.
+  EXPECT_LT(std::sqrt(sum_h / n), 2.0);
+  EXPECT_LT(std::sqrt(sum_v / n), 4.0);
+  EXPECT_GT(std::sqrt(sum_h / n + sum_v / n), 0.01);
+}
+
+}  // namespace
+}  // namespace aerotri
