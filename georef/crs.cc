@@ -155,6 +155,12 @@ std::string Crs::Wkt() const {
   return wkt ? wkt : "";
 }
 
+std::string Crs::WktV1() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  const char* wkt = proj_as_wkt(impl_->ctx, impl_->crs, PJ_WKT1_GDAL, nullptr);
+  return wkt ? wkt : "";
+}
+
 bool Crs::IsGeographic() const { return impl_->geographic; }
 bool Crs::HasVerticalDatum() const { return impl_->vertical; }
 

@@ -32,7 +32,8 @@ class Crs {
 
   const std::string& definition() const;
   std::string Name() const;
-  std::string Wkt() const;  // WKT2:2019
+  std::string Wkt() const;    // WKT2:2019
+  std::string WktV1() const;  // OGC WKT 1 (GDAL flavour), what LAS 1.4 readers expect
   bool IsGeographic() const;
   // True for a compound CRS or one with a vertical axis (heights are not
   // ellipsoidal).

@@ -107,6 +107,11 @@ struct RunArgs {
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
   std::string crs;
+  double dense_resolution_m = 0.0;
+  double dsm_resolution_m = 0.0;
+  double dsm_fill_m = 2.0;
+  bool cog = false;
+  std::string dem_output;     // aerotri dem
   std::string stage = "all";  // which stage a stage subcommand runs
 };
 void RegisterRunCommands(CLI::App& app, CommandAction* run);

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // aerotri run IMAGES --output DIR, and the stages as subcommands.
+#include <cstdio>
 #include <memory>
 
 #include "libphoto/base/error.h"
@@ -8,6 +9,15 @@
 
 namespace aerotri {
 namespace {
+
+void AddDsmOptions(CLI::App* cmd, RunArgs* a) {
+  cmd->add_option("--dsm-resolution", a->dsm_resolution_m,
+                  "DSM pixel size (metres, in the output CRS); 0 = twice the dense spacing")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--dsm-fill", a->dsm_fill_m, "Fill DSM holes up to this distance (metres); 0 = no filling")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_flag("--cog", a->cog, "Write the DSM as a Cloud-Optimised GeoTIFF");
+}
 
 void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
   if (images_positional) {
@@ -39,6 +49,10 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
   cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
       ->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
+  cmd->add_option("--dense-resolution", a->dense_resolution_m,
+                  "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  AddDsmOptions(cmd, a);
 }
 
 }  // namespace
@@ -58,12 +72,34 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
       {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false},
       {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
                        "OUTPUT/report.json", false},
+      {"dense", "Dense matching and the deliverables: OUTPUT/cloud.las, cloud.ply, dsm.tif", false},
+      {"report", "Complete report.json (DSM at check points, coverage) and write report.html", false},
   };
   for (const Stage& s : stages) {
     auto a = std::make_shared<RunArgs>();
     a->stage = s.name;
     CLI::App* cmd = app.add_subcommand(s.name, s.help);
     AddPhotoOptions(cmd, a.get(), s.needs_images);
+    cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
+  }
+  {
+    auto a = std::make_shared<RunArgs>();
+    a->stage = "dem";
+    CLI::App* cmd = app.add_subcommand("dem", "Rebuild a DSM from an existing survey's cloud.las at another resolution");
+    cmd->add_option("--survey", a->output, "Survey folder (the output of aerotri run)")->required()->check(CLI::ExistingDirectory);
+    cmd->add_option("--output,-o", a->dem_output, "DSM file to write (default: SURVEY/dsm_<resolution>m.tif)");
+    AddDsmOptions(cmd, a.get());
+    cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
+  }
+  {
+    auto a = std::make_shared<RunArgs>();
+    a->stage = "check";
+    CLI::App* cmd = app.add_subcommand(
+        "check", "Accuracy of an existing survey against check points: rewrites SURVEY/report.json and report.html");
+    cmd->add_option("--survey", a->output, "Survey folder (the output of aerotri run)")->required()->check(CLI::ExistingDirectory);
+    cmd->add_option("--checkpoints", a->checkpoints, "Check points (OpenDroneMap gcp_list.txt format)")->required();
+    cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "corner (ODM/COLMAP) or centre")
+        ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
     cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
   }
 }
@@ -85,6 +121,10 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.checkpoints = a.checkpoints;
   o.gcp_pixel_origin = a.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
   o.georef.output_crs = a.crs;
+  o.dense_resolution_m = a.dense_resolution_m;
+  o.dsm_resolution_m = a.dsm_resolution_m;
+  o.dsm_fill_m = a.dsm_fill_m;
+  o.cog = a.cog;
   o.georef.gcp_sigma_h_m = a.gcp_sigma_h_m;
   o.georef.gcp_sigma_v_m = a.gcp_sigma_v_m;
   o.georef.bundle.loss = LossType::kHuber;
@@ -112,8 +152,23 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
     RunReconstructStage(o);
   } else if (s == "georeference") {
     RunGeoreferenceStage(o);
+  } else if (s == "dense") {
+    RunDenseStage(o);
+  } else if (s == "report") {
+    RunReportStage(o);
+  } else if (s == "dem") {
+    if (!(a.dsm_resolution_m > 0)) throw InvalidArgument("dem: --dsm-resolution (metres) is required");
+    char name[64];
+    std::snprintf(name, sizeof(name), "dsm_%gm.tif", a.dsm_resolution_m);
+    const std::filesystem::path out = a.dem_output.empty() ? std::filesystem::path(a.output) / name
+                                                           : std::filesystem::path(a.dem_output);
+    RebuildDsm(o, out);
+    *ctx.out << "dsm: " << out.string() << "\n";
+    return 0;
+  } else if (s == "check") {
+    CheckSurvey(o);
   }
-  if (s == "run" || s == "georeference") {
+  if (s == "run" || s == "georeference" || s == "report" || s == "check") {
     const auto report = std::filesystem::path(a.output) / "report.json";
     *ctx.out << "report: " << report.string() << "\n";
   }

@@ -39,6 +39,39 @@ void ApplySimilarity(const Similarity& s, SparseModel* model) {
 
 }  // namespace
 
+GroundPointResult EvaluateGroundPoint(const std::string& name, PointRole role,
+                                      const std::vector<View>& views, const Geodetic& surveyed,
+                                      const LocalFrame& frame, const Crs& crs, bool triangulate,
+                                      Eigen::Vector3d* position_enu) {
+  GroundPointResult r;
+  r.name = name;
+  r.role = role;
+  r.num_images = static_cast<int>(views.size());
+  if (triangulate) {
+    const auto t = TriangulatePoint(views);
+    if (!t) {
+      r.why_not = views.size() < 2 ? "measured in fewer than 2 images of the model"
+                                   : "rays too parallel or behind a camera";
+      return r;
+    }
+    *position_enu = t->position;
+  } else if (views.empty()) {
+    r.why_not = "not measured in any image of the model";
+    return r;
+  }
+  r.solved = true;
+  double sum = 0.0;
+  for (const View& v : views) {
+    sum += (v.camera->ImageFromCamera(v.pose.CamFromWorld(*position_enu)) - v.xy).squaredNorm();
+  }
+  r.reprojection_rms_px = views.empty() ? 0.0 : std::sqrt(sum / views.size());
+  r.surveyed_crs = crs.FromGeodetic(surveyed);
+  r.adjusted_crs = crs.FromGeodetic(frame.GeodeticFromEnu(*position_enu));
+  r.d_m = crs.IsGeographic() ? Eigen::Vector3d(*position_enu - frame.EnuFromGeodetic(surveyed))
+                             : Eigen::Vector3d(r.adjusted_crs - r.surveyed_crs);
+  return r;
+}
+
 GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
                                          const std::map<std::string, GpsFix>& gps,
                                          const GcpFile* control, const GcpFile* checks,
@@ -217,56 +250,13 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
 
   // 5. Check points from the adjusted cameras alone; residuals in the output CRS.
   ReportProgress(options.progress, 0.9, "check points");
-  auto to_crs = [&](const Eigen::Vector3d& enu) {
-    return out_crs->FromGeodetic(frame.GeodeticFromEnu(enu));
-  };
-  const std::vector<double> errors = ReprojectionErrors(*model);
   std::vector<Eigen::Vector3d> control_d, check_d;
   for (const SurveyedPoint& s : surveyed) {
-    GroundPointResult r;
-    r.name = s.source->name;
-    r.role = s.role;
     Point& point = model->points[s.point_index];
-    const std::vector<View> views = ViewsOf(*model, s.point_index);
-    r.num_images = static_cast<int>(views.size());
-    if (s.role == PointRole::kCheck) {
-      const auto t = TriangulatePoint(views);
-      if (t) {
-        point.position = t->position;
-        r.solved = true;
-      } else {
-        r.why_not = views.size() < 2 ? "measured in fewer than 2 images of the model"
-                                     : "rays too parallel or behind a camera";
-      }
-    } else {
-      r.solved = !views.empty();
-      if (!r.solved) r.why_not = "not measured in any image of the model";
-    }
-    if (r.solved) {
-      double sum = 0.0;
-      int n = 0;
-      for (size_t o = 0; o < model->observations.size(); ++o) {
-        if (model->observations[o].point == s.point_index && std::isfinite(errors[o])) {
-          sum += errors[o] * errors[o];
-          ++n;
-        }
-      }
-      // Check points were just triangulated: recompute on their new position.
-      if (s.role == PointRole::kCheck) {
-        sum = 0.0;
-        n = 0;
-        for (const View& v : views) {
-          sum += (v.camera->ImageFromCamera(v.pose.CamFromWorld(point.position)) - v.xy).squaredNorm();
-          ++n;
-        }
-      }
-      r.reprojection_rms_px = n > 0 ? std::sqrt(sum / n) : 0.0;
-      r.surveyed_crs = out_crs->FromGeodetic(s.geodetic);
-      r.adjusted_crs = to_crs(point.position);
-      r.d_m = report.residuals_in_crs_units ? Eigen::Vector3d(r.adjusted_crs - r.surveyed_crs)
-                                            : Eigen::Vector3d(point.position - point.prior->position);
-      (s.role == PointRole::kControl ? control_d : check_d).push_back(r.d_m);
-    }
+    const GroundPointResult r =
+        EvaluateGroundPoint(s.source->name, s.role, ViewsOf(*model, s.point_index), s.geodetic, frame,
+                            *out_crs, /*triangulate=*/s.role == PointRole::kCheck, &point.position);
+    if (r.solved) (s.role == PointRole::kControl ? control_d : check_d).push_back(r.d_m);
     (s.role == PointRole::kControl ? report.control : report.check).push_back(r);
   }
   report.control_stats = AccuracyStats::FromResiduals(control_d);

@@ -32,6 +32,7 @@
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/base/progress.h"
 #include "libphoto/ingest/gps_sources.h"
+#include "libphoto/sfm/triangulation.h"
 
 namespace aerotri {
 
@@ -83,6 +84,15 @@ struct GeoreferenceReport {
   std::vector<CameraResult> cameras;
   std::vector<std::string> warnings;
 };
+
+// A control or check point against its survey: with triangulate, the point
+// is triangulated from views alone (check points) into *position_enu;
+// otherwise *position_enu (the adjusted position) is evaluated. Residuals are
+// in the CRS (ENU metres for a geographic CRS).
+GroundPointResult EvaluateGroundPoint(const std::string& name, PointRole role,
+                                      const std::vector<View>& views, const Geodetic& surveyed,
+                                      const LocalFrame& frame, const Crs& crs, bool triangulate,
+                                      Eigen::Vector3d* position_enu);
 
 // Adjusts model in place; on return it is in the ENU frame of
 // report.enu_origin, with control and check points appended as points of

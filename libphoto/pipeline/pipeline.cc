@@ -19,130 +19,17 @@
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/dense/dense_stereo.h"
 #include "libphoto/ingest/image_metadata.h"
 #include "libphoto/io/colmap_text.h"
+#include "libphoto/pipeline/workspace.h"
 #include "libphoto/report/report_json.h"
 
 namespace aerotri {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-namespace {
-
 using Clock = std::chrono::steady_clock;
-
-void Log(const PipelineOptions& o, const std::string& message) {
-  if (o.log) o.log(message);
-}
-
-ProgressCallback StageProgress(const PipelineOptions& o, const std::string& stage) {
-  return o.progress ? o.progress(stage) : ProgressCallback();
-}
-
-double PeakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;
-}
-
-void RecordTiming(const PipelineOptions& o, const std::string& stage, double seconds) {
-  const fs::path path = o.workspace / "timings.json";
-  json timings = json::object();
-  if (fs::exists(path)) {
-    try {
-      timings = json::parse(ReadTextFile(path));
-    } catch (const std::exception&) {
-      timings = json::object();
-    }
-  }
-  timings[stage] = {{"wall_s", seconds}, {"peak_rss_mb", PeakRssMb()}};
-  WriteTextFileAtomically(path, timings.dump(2) + "\n");
-}
-
-unsigned Threads(const PipelineOptions& o) {
-  return o.num_threads > 0 ? static_cast<unsigned>(o.num_threads)
-                           : std::max(1u, std::thread::hardware_concurrency());
-}
-
-json ReadJson(const fs::path& path, const char* stage) {
-  if (!fs::exists(path)) {
-    throw IoError(path.string(), std::string("missing: run the ") + stage + " stage first");
-  }
-  try {
-    return json::parse(ReadTextFile(path));
-  } catch (const json::exception& e) {
-    throw ParseError(path.string(), 0, std::string("corrupt JSON (") + e.what() + "); delete it to redo the stage");
-  }
-}
-
-// The working-resolution size ExtractFeatures / LoadWorkingImage produce.
-std::pair<int, int> WorkingSize(int width, int height, int max_dimension) {
-  const int longer = std::max(width, height);
-  if (max_dimension <= 0 || longer <= max_dimension) return {width, height};
-  const double s = static_cast<double>(longer) / max_dimension;
-  return {static_cast<int>(std::lround(width / s)), static_cast<int>(std::lround(height / s))};
-}
-
-fs::path FeaturePath(const PipelineOptions& o, const std::string& name) {
-  return o.workspace / "features" / (name + ".sift");
-}
-
-struct IngestView {
-  std::vector<std::string> names;
-  std::vector<bool> usable;
-  std::vector<double> scale;  // full px per working px
-  std::vector<int> group;
-  std::vector<std::optional<GpsFix>> gps;
-  std::vector<Camera> cameras;  // per group, working px
-  json raw;
-};
-
-IngestView LoadIngest(const PipelineOptions& o) {
-  IngestView v;
-  v.raw = ReadJson(o.workspace / "ingest.json", "ingest");
-  for (const json& g : v.raw.at("groups")) {
-    Camera c;
-    c.id = static_cast<int>(v.cameras.size()) + 1;
-    c.model = CameraModelId::kBrown;
-    c.width = g.at("working_width");
-    c.height = g.at("working_height");
-    c.params = g.at("params").get<std::vector<double>>();
-    v.cameras.push_back(c);
-  }
-  for (const json& im : v.raw.at("images")) {
-    v.names.push_back(im.at("name"));
-    v.usable.push_back(im.at("usable"));
-    v.scale.push_back(im.value("scale", 1.0));
-    v.group.push_back(im.value("group", -1));
-    if (im.contains("gps") && !im["gps"].is_null()) {
-      GpsFix f;
-      f.position = {im["gps"]["lat_deg"], im["gps"]["lon_deg"], im["gps"]["h_m"]};
-      f.sigma_h_m = im["gps"]["sigma_h_m"];
-      f.sigma_v_m = im["gps"]["sigma_v_m"];
-      f.source = im["gps"]["source"];
-      v.gps.push_back(f);
-    } else {
-      v.gps.push_back(std::nullopt);
-    }
-  }
-  return v;
-}
-
-std::vector<ImageFeatures> LoadFeatures(const PipelineOptions& o, IngestView* ingest) {
-  std::vector<ImageFeatures> features(ingest->names.size());
-  for (size_t i = 0; i < ingest->names.size(); ++i) {
-    if (!ingest->usable[i]) continue;
-    const fs::path path = FeaturePath(o, ingest->names[i]);
-    if (!fs::exists(path)) {
-      ingest->usable[i] = false;  // decoding failed in the features stage
-      continue;
-    }
-    features[i] = ReadFeatures(path);
-  }
-  return features;
-}
-
-}  // namespace
 
 bool RunIngestStage(const PipelineOptions& o) {
   const fs::path out = o.workspace / "ingest.json";
@@ -573,6 +460,9 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
       const Eigen::Vector3d xyz = crs.FromGeodetic(g);
       csv << image.name << "," << xyz.x() << "," << xyz.y() << "," << xyz.z() << "," << g.lat_deg
           << "," << g.lon_deg << "," << g.h_m;
+      for (auto& c : report["cameras"]) {
+        if (c["name"] == image.name) c.update({{"x", xyz.x()}, {"y", xyz.y()}, {"z", xyz.z()}});
+      }
       if (image.gps_prior) {
         const Eigen::Vector3d d = image.pose.centre_in_world - image.gps_prior->position;
         csv << "," << d.x() << "," << d.y() << "," << d.z();
@@ -590,13 +480,29 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     report["adjustment"]["final_rms_px"] = 0.0;
   }
   report["georeferenced"] = can_georeference && !model.images.empty();
+  report["gsd_m"] = MedianGsd(model);
   report["pixels"] = "sparse/ holds full-resolution pixels; adjustment figures are at the working "
                      "resolution (longer side " + std::to_string(o.features.max_dimension) + " px)";
-  // Images.
+  // Images, with their reprojection error.
+  std::map<std::string, std::pair<double, int>> image_error;
+  {
+    const std::vector<double> errors = ReprojectionErrors(model);
+    for (size_t k = 0; k < errors.size(); ++k) {
+      const Observation& obs = model.observations[k];
+      if (model.points[obs.point].role != PointRole::kTie || !std::isfinite(errors[k])) continue;
+      auto& e = image_error[model.images[obs.image].name];
+      e.first += errors[k] * errors[k];
+      ++e.second;
+    }
+  }
   json images = json::array();
   int registered = 0;
   for (const json& im : recon.at("images")) {
     json entry = im;
+    if (const auto e = image_error.find(im.at("name").get<std::string>()); e != image_error.end() && e->second.second > 0) {
+      entry["reprojection_rms_px"] = std::sqrt(e->second.first / e->second.second);
+      entry["observations"] = e->second.second;
+    }
     const auto it = index_of_name.find(im.at("name").get<std::string>());
     entry["gps"] = it != index_of_name.end() && ingest.gps[it->second].has_value();
     registered += im.at("registered").get<bool>() ? 1 : 0;
@@ -616,6 +522,8 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["ingest_warnings"] = ingest.raw.value("warnings", json::array());
 
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
+  // The working-resolution model in ENU feeds dense matching.
+  WriteColmapText(model, o.workspace / "georeferenced");
   RecordTiming(o, "georeference", std::chrono::duration<double>(Clock::now() - start).count());
   if (fs::exists(o.workspace / "timings.json")) {
     report["timings"] = json::parse(ReadTextFile(o.workspace / "timings.json"));
@@ -630,6 +538,8 @@ void RunPipeline(const PipelineOptions& o) {
   RunMatchStage(o);
   RunReconstructStage(o);
   RunGeoreferenceStage(o);
+  RunDenseStage(o);
+  RunReportStage(o);
 }
 
 }  // namespace aerotri

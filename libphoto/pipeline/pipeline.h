@@ -11,7 +11,11 @@
 //   reconstruct  reconstruction/ (COLMAP text, arbitrary frame, working px)
 //                + reconstruction.json  per-image registration
 //   georeference sparse/ (COLMAP text, ENU metres, full-resolution pixels),
+//                georeferenced/ (the same at the working resolution),
 //                cameras.csv (positions in the output CRS), report.json
+//   dense        cloud.las, cloud.ply (output CRS), dsm.tif (GeoTIFF / COG)
+//   report       report.json completed (DSM at check points, coverage) and
+//                report.html (self-contained, opens offline)
 //
 // Every stage records its wall time and the process's peak memory in
 // timings.json.
@@ -50,6 +54,13 @@ struct PipelineOptions {
   PixelOrigin gcp_pixel_origin = PixelOrigin::kCorner;
   GeoreferenceOptions georef;
 
+  // dense
+  double dense_resolution_m = 0.0;  // 0: the median GSD at working resolution
+  double dense_image_scale = 1.0;   // of the working images for matching
+  double dsm_resolution_m = 0.0;    // 0: twice the dense resolution
+  double dsm_fill_m = 2.0;          // holes filled up to this distance
+  bool cog = false;                 // Cloud-Optimised GeoTIFF
+
   // One callback per stage name ("ingest", "features", ...); may be null.
   std::function<ProgressCallback(const std::string& stage)> progress;
   // Messages for the user (warnings, stage skipped); may be null.
@@ -63,7 +74,16 @@ bool RunMatchStage(const PipelineOptions& options);
 bool RunReconstructStage(const PipelineOptions& options);
 bool RunGeoreferenceStage(const PipelineOptions& options);
 
+bool RunDenseStage(const PipelineOptions& options);
+bool RunReportStage(const PipelineOptions& options);
+
 // All stages in order.
 void RunPipeline(const PipelineOptions& options);
+
+// Rebuilds the DSM from OUTPUT/cloud.las at another resolution into path.
+void RebuildDsm(const PipelineOptions& options, const std::filesystem::path& path);
+// Re-evaluates check points (options.checkpoints) on an existing survey and
+// rewrites report.json and report.html.
+void CheckSurvey(const PipelineOptions& options);
 
 }  // namespace aerotri

@@ -1,0 +1,95 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/export/dsm.h"
+
+#include <gdal_alg.h>
+#include <gdal_priv.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+
+Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& wkt,
+                    const DsmOptions& o, DsmSummary* summary) {
+  if (xyz.empty()) throw InvalidArgument("DSM: the point cloud is empty");
+  if (!(o.resolution_m > 0)) throw InvalidArgument("DSM: resolution must be > 0");
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (const auto& p : xyz) {
+    lo = lo.cwiseMin(p.head<2>());
+    hi = hi.cwiseMax(p.head<2>());
+  }
+  const double res = o.resolution_m;
+  Raster r;
+  const double x0 = std::floor(lo.x() / res) * res, y1 = std::ceil(hi.y() / res) * res;
+  r.width = static_cast<int>(std::ceil((hi.x() - x0) / res)) + 1;
+  r.height = static_cast<int>(std::ceil((y1 - lo.y()) / res)) + 1;
+  if (static_cast<double>(r.width) * r.height > 4e8) {
+    throw InvalidArgument("DSM: " + std::to_string(r.width) + " x " + std::to_string(r.height) +
+                          " cells at " + std::to_string(res) + " m is too large; choose a coarser resolution");
+  }
+  r.geotransform = {x0, res, 0.0, y1, 0.0, -res};
+  r.wkt = wkt;
+  r.nodata = o.nodata;
+  // Heights per cell, then the median.
+  std::vector<std::vector<float>> cells(static_cast<size_t>(r.width) * r.height);
+  for (const auto& p : xyz) {
+    const int cx = static_cast<int>((p.x() - x0) / res);
+    const int cy = static_cast<int>((y1 - p.y()) / res);
+    if (cx < 0 || cy < 0 || cx >= r.width || cy >= r.height) continue;
+    cells[static_cast<size_t>(cy) * r.width + cx].push_back(static_cast<float>(p.z()));
+  }
+  r.values.assign(cells.size(), static_cast<float>(o.nodata));
+  long long with_data = 0;
+  for (size_t c = 0; c < cells.size(); ++c) {
+    auto& v = cells[c];
+    if (v.empty()) continue;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    r.values[c] = v[v.size() / 2];
+    ++with_data;
+    std::vector<float>().swap(v);
+  }
+  long long filled = 0;
+  if (o.fill_max_distance_m > 0) {
+    GDALAllRegister();
+    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+    std::unique_ptr<GDALDataset> ds(mem->Create("", r.width, r.height, 1, GDT_Float32, nullptr));
+    GDALRasterBand* band = ds->GetRasterBand(1);
+    band->SetNoDataValue(o.nodata);
+    if (band->RasterIO(GF_Write, 0, 0, r.width, r.height, r.values.data(), r.width, r.height, GDT_Float32, 0, 0) !=
+        CE_None) {
+      throw IoError("DSM", "cannot fill the in-memory raster");
+    }
+    const double max_px = o.fill_max_distance_m / res;
+    if (GDALFillNodata(band, nullptr, max_px, 0, 0, nullptr, nullptr, nullptr) != CE_None) {
+      throw IoError("DSM", std::string("GDALFillNodata failed: ") + CPLGetLastErrorMsg());
+    }
+    band->RasterIO(GF_Read, 0, 0, r.width, r.height, r.values.data(), r.width, r.height, GDT_Float32, 0, 0);
+    long long now = 0;
+    for (float v : r.values) now += v != static_cast<float>(o.nodata);
+    filled = now - with_data;
+  }
+  if (summary) {
+    summary->width = r.width;
+    summary->height = r.height;
+    summary->cells_with_data = with_data;
+    summary->cells_filled = filled;
+  }
+  return r;
+}
+
+std::optional<double> SampleRaster(const Raster& r, double x, double y) {
+  const double px = (x - r.geotransform[0]) / r.geotransform[1] - 0.5;
+  const double py = (y - r.geotransform[3]) / r.geotransform[5] - 0.5;
+  const int x0 = static_cast<int>(std::floor(px)), y0 = static_cast<int>(std::floor(py));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= r.width || y0 + 1 >= r.height) return std::nullopt;
+  const double tx = px - x0, ty = py - y0;
+  const float nd = static_cast<float>(r.nodata);
+  const float a = r.at(x0, y0), b = r.at(x0 + 1, y0), c = r.at(x0, y0 + 1), d = r.at(x0 + 1, y0 + 1);
+  if (a == nd || b == nd || c == nd || d == nd) return std::nullopt;
+  return (a * (1 - tx) + b * tx) * (1 - ty) + (c * (1 - tx) + d * tx) * ty;
+}
+
+}  // namespace aerotri

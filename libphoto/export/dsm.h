@@ -1,0 +1,38 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Digital surface model from a point cloud in a projected output CRS: each
+// cell takes the median height of the points that fall in it (robust to the
+// odd stray point), holes are filled up to a distance with GDAL's inverse-
+// distance FillNodata, and the raster is written through GDAL (GeoTIFF with
+// overviews, or a Cloud-Optimised GeoTIFF) with CRS, geotransform and nodata.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "libphoto/export/raster.h"
+
+namespace aerotri {
+
+struct DsmOptions {
+  double resolution_m = 0.1;       // cell size (CRS units)
+  double fill_max_distance_m = 2.0;  // holes up to this far from data are filled; 0: none
+  double nodata = -9999.0;
+};
+
+struct DsmSummary {
+  int width = 0, height = 0;
+  long long cells_with_data = 0;
+  long long cells_filled = 0;
+};
+
+Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& wkt,
+                    const DsmOptions& options, DsmSummary* summary = nullptr);
+
+// Bilinear height at (x, y) in the raster's CRS; std::nullopt outside the
+// raster or next to nodata.
+std::optional<double> SampleRaster(const Raster& raster, double x, double y);
+
+}  // namespace aerotri

@@ -1,0 +1,316 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The deliverable stages: dense cloud, LAS / PLY, DSM; and the report.
+#include <gdal_utils.h>
+#include <gdal_priv.h>
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <thread>
+
+#include "georef/crs.h"
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
+#include "libphoto/dense/dense_stereo.h"
+#include "libphoto/export/dsm.h"
+#include "libphoto/export/point_cloud.h"
+#include "libphoto/io/colmap_text.h"
+#include "libphoto/pipeline/pipeline.h"
+#include "libphoto/pipeline/workspace.h"
+#include "libphoto/report/html_report.h"
+#include "libphoto/report/report_json.h"
+
+namespace aerotri {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct GeoFrame {
+  LocalFrame frame;
+  Crs crs;
+};
+
+GeoFrame FrameOf(const json& report) {
+  if (!report.value("georeferenced", false) || !report.contains("crs") || report["crs"].is_null()) {
+    throw InvalidArgument("the survey is not georeferenced (no GPS and no control points): no LAS, DSM or "
+                          "check-point figures can be given in a CRS");
+  }
+  const auto& o = report.at("enu_origin");
+  return {LocalFrame({o.at("lat_deg"), o.at("lon_deg"), o.at("h_m")}),
+          Crs::FromString(report.at("crs").get<std::string>())};
+}
+
+// ENU points to the output CRS on all cores (a Crs per thread: PROJ objects
+// are not shared across threads).
+std::vector<Eigen::Vector3d> ToCrs(const std::vector<Eigen::Vector3d>& enu, const GeoFrame& g, unsigned threads) {
+  std::vector<Eigen::Vector3d> out(enu.size());
+  auto work = [&](size_t begin, size_t end) {
+    const Crs crs = Crs::FromString(g.crs.definition());
+    for (size_t i = begin; i < end; ++i) out[i] = crs.FromGeodetic(g.frame.GeodeticFromEnu(enu[i]));
+  };
+  std::vector<std::thread> pool;
+  const size_t chunk = (enu.size() + threads - 1) / std::max(1u, threads);
+  for (unsigned t = 1; t < threads; ++t) {
+    const size_t b = std::min(enu.size(), t * chunk), e = std::min(enu.size(), (t + 1) * chunk);
+    pool.emplace_back(work, b, e);
+  }
+  work(0, std::min(enu.size(), chunk));
+  for (auto& t : pool) t.join();
+  return out;
+}
+
+double DsmResolution(const PipelineOptions& o, double cloud_resolution) {
+  if (o.dsm_resolution_m > 0) return o.dsm_resolution_m;
+  return std::max(0.01, std::round(2.0 * cloud_resolution * 100.0) / 100.0);
+}
+
+void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double resolution, const PipelineOptions& o,
+              const fs::path& path, json* info) {
+  DsmOptions d;
+  d.resolution_m = resolution;
+  d.fill_max_distance_m = o.dsm_fill_m;
+  DsmSummary summary;
+  const Raster dsm = RasterizeDsm(xyz, crs.Wkt(), d, &summary);
+  RasterWriteOptions w;
+  w.cog = o.cog;
+  WriteRaster(dsm, path, w);
+  const double cells = static_cast<double>(summary.width) * summary.height;
+  *info = {{"file", path.filename().string()},
+           {"resolution_m", resolution},
+           {"width", summary.width},
+           {"height", summary.height},
+           {"cells_with_points", summary.cells_with_data},
+           {"cells_filled", summary.cells_filled},
+           {"filled_fraction", cells > 0 ? (summary.cells_with_data + summary.cells_filled) / cells : 0.0},
+           {"fill_max_distance_m", o.dsm_fill_m},
+           {"cog", o.cog}};
+}
+
+// PNG bytes of a hillshade of the DSM, at most max_size pixels wide.
+std::string HillshadePng(const fs::path& dsm, int max_size) {
+  GDALAllRegister();
+  GDALDatasetH src = GDALOpen(dsm.string().c_str(), GA_ReadOnly);
+  if (!src) return {};
+  const int w = GDALGetRasterXSize(src), h = GDALGetRasterYSize(src);
+  const double s = std::min(1.0, static_cast<double>(max_size) / std::max(w, h));
+  const std::string sw = std::to_string(std::max(1, static_cast<int>(w * s)));
+  const std::string sh = std::to_string(std::max(1, static_cast<int>(h * s)));
+  const char* tr_args[] = {"-of", "MEM", "-outsize", sw.c_str(), sh.c_str(), "-r", "average", nullptr};
+  GDALTranslateOptions* tr = GDALTranslateOptionsNew(const_cast<char**>(tr_args), nullptr);
+  GDALDatasetH small = GDALTranslate("", src, tr, nullptr);
+  GDALTranslateOptionsFree(tr);
+  GDALClose(src);
+  if (!small) return {};
+  const char* hs_args[] = {"-of", "MEM", "-compute_edges", "-multidirectional", nullptr};
+  GDALDEMProcessingOptions* hs = GDALDEMProcessingOptionsNew(const_cast<char**>(hs_args), nullptr);
+  GDALDatasetH shade = GDALDEMProcessing("", small, "hillshade", nullptr, hs, nullptr);
+  GDALDEMProcessingOptionsFree(hs);
+  GDALClose(small);
+  if (!shade) return {};
+  const std::string vsi = "/vsimem/aerotri_hillshade.png";
+  const char* png_args[] = {"-of", "PNG", nullptr};
+  GDALTranslateOptions* po = GDALTranslateOptionsNew(const_cast<char**>(png_args), nullptr);
+  GDALDatasetH png = GDALTranslate(vsi.c_str(), shade, po, nullptr);
+  GDALTranslateOptionsFree(po);
+  GDALClose(shade);
+  if (!png) return {};
+  GDALClose(png);
+  vsi_l_offset length = 0;
+  GByte* bytes = VSIGetMemFileBuffer(vsi.c_str(), &length, TRUE);
+  std::string out(reinterpret_cast<const char*>(bytes), static_cast<size_t>(length));
+  CPLFree(bytes);
+  VSIUnlink((vsi + ".aux.xml").c_str());
+  return out;
+}
+
+// DSM heights at the check points against their surveyed heights.
+json DsmAtCheckPoints(const json& report, const Raster& dsm) {
+  json out = {{"points", json::array()}};
+  double sum = 0.0;
+  int n = 0;
+  for (const auto& p : report.value("check_points", json::object()).value("points", json::array())) {
+    if (!p.contains("surveyed")) continue;
+    json e = {{"name", p.value("name", "")}};
+    const auto z = SampleRaster(dsm, p["surveyed"][0], p["surveyed"][1]);
+    if (z) {
+      const double dz = *z - p["surveyed"][2].get<double>();
+      e["dz_m"] = dz;
+      sum += dz * dz;
+      ++n;
+    }
+    out["points"].push_back(e);
+  }
+  out["count"] = n;
+  out["rmse_z_m"] = n > 0 ? std::sqrt(sum / n) : 0.0;
+  return out;
+}
+
+// Images that see each cell of a coarse grid over the DSM.
+json Coverage(const SparseModel& model, const Raster& dsm, const GeoFrame& g) {
+  const int nx = 60, ny = std::max(1, static_cast<int>(60.0 * dsm.height / std::max(1, dsm.width)));
+  std::vector<int> counts(static_cast<size_t>(nx) * ny, -1);
+  for (int y = 0; y < ny; ++y) {
+    for (int x = 0; x < nx; ++x) {
+      const int px = static_cast<int>((x + 0.5) * dsm.width / nx), py = static_cast<int>((y + 0.5) * dsm.height / ny);
+      const float z = dsm.at(px, py);
+      if (z == static_cast<float>(dsm.nodata)) continue;
+      const Eigen::Vector3d enu = g.frame.EnuFromGeodetic(g.crs.ToGeodetic({dsm.X(px), dsm.Y(py), z}));
+      int c = 0;
+      for (const Image& image : model.images) {
+        if (!image.registered) continue;
+        const Camera& cam = model.cameras[image.camera];
+        const Eigen::Vector3d pc = image.pose.CamFromWorld(enu);
+        if (pc.z() <= 0) continue;
+        const Eigen::Vector2d xy = cam.ImageFromCamera(pc);
+        c += xy.x() >= 0 && xy.y() >= 0 && xy.x() < cam.width && xy.y() < cam.height;
+      }
+      counts[static_cast<size_t>(y) * nx + x] = c;
+    }
+  }
+  return {{"nx", nx}, {"ny", ny}, {"counts", counts}};
+}
+
+}  // namespace
+
+bool RunDenseStage(const PipelineOptions& o) {
+  const fs::path las = o.workspace / "cloud.las", ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
+  if (fs::exists(las) && fs::exists(ply) && fs::exists(dsm) && !o.force) {
+    Log(o, "dense: done already (" + las.string() + ")");
+    return false;
+  }
+  const auto start = Clock::now();
+  json report = ReadJson(o.workspace / "report.json", "georeference");
+  if (!report.value("georeferenced", false)) {
+    Log(o, "warning: dense: the survey is not georeferenced; no cloud or DSM in a CRS is written");
+    return false;
+  }
+  const GeoFrame g = FrameOf(report);
+  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
+  IngestView ingest = LoadIngest(o);
+  const fs::path images_dir = ingest.raw.value("images_dir", o.images_dir.string());
+  const int max_dimension = ingest.raw.value("working_max_dimension", o.features.max_dimension);
+  DenseOptions d;
+  d.resolution_m = o.dense_resolution_m;
+  d.image_scale = o.dense_image_scale;
+  d.num_threads = o.num_threads;
+  DenseSummary summary;
+  const DenseCloud cloud = ComputeDenseCloud(
+      model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
+      StageProgress(o, "dense"), &summary);
+  if (cloud.positions.empty()) throw InvalidArgument("dense matching produced no points (no image pair to match)");
+  CrsCloud out;
+  out.xyz = ToCrs(cloud.positions, g, Threads(o));
+  out.rgb = cloud.colours;
+  out.crs_wkt = g.crs.WktV1();
+  out.crs_name = g.crs.Name();
+  WriteLas(out, las);
+  WritePly(out, ply);
+  json dsm_info;
+  WriteDsm(out.xyz, g.crs, DsmResolution(o, cloud.resolution_m), o, dsm, &dsm_info);
+  const json dense = {{"pairs", summary.pairs},
+                      {"pairs_failed", summary.pairs_failed},
+                      {"depth_points", summary.depth_points},
+                      {"points", out.xyz.size()},
+                      {"resolution_m", cloud.resolution_m},
+                      {"min_views", d.min_views},
+                      {"dsm", dsm_info}};
+  WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
+  Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud.resolution_m) +
+             " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
+             std::to_string(dsm_info["height"].get<int>()));
+  RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
+  return true;
+}
+
+bool RunReportStage(const PipelineOptions& o) {
+  const fs::path html = o.workspace / "report.html";
+  if (fs::exists(html) && !o.force) {
+    Log(o, "report: done already (" + html.string() + ")");
+    return false;
+  }
+  const auto start = Clock::now();
+  json report = ReadJson(o.workspace / "report.json", "georeference");
+  std::string hillshade;
+  if (fs::exists(o.workspace / "dsm.tif") && fs::exists(o.workspace / "dense.json")) {
+    const json dense = json::parse(ReadTextFile(o.workspace / "dense.json"));
+    const GeoFrame g = FrameOf(report);
+    const Raster dsm = ReadRaster(o.workspace / "dsm.tif");
+    report["dense"] = {{"points", dense["points"]}, {"resolution_m", dense["resolution_m"]},
+                       {"pairs", dense["pairs"]}, {"files", {"cloud.las", "cloud.ply"}}};
+    report["dsm"] = dense["dsm"];
+    report["dsm"]["check_points"] = DsmAtCheckPoints(report, dsm);
+    report["coverage"] = Coverage(ReadColmapText(o.workspace / "georeferenced"), dsm, g);
+    hillshade = HillshadePng(o.workspace / "dsm.tif", 900);
+  }
+  RecordTiming(o, "report", std::chrono::duration<double>(Clock::now() - start).count());
+  report["timings"] = json::parse(ReadTextFile(o.workspace / "timings.json"));
+  WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
+  WriteTextFileAtomically(html, RenderHtmlReport(report, hillshade));
+  return true;
+}
+
+void RebuildDsm(const PipelineOptions& o, const fs::path& path) {
+  const json report = ReadJson(o.workspace / "report.json", "georeference");
+  const GeoFrame g = FrameOf(report);
+  const CrsCloud cloud = ReadLas(o.workspace / "cloud.las");
+  if (cloud.xyz.empty()) throw InvalidArgument((o.workspace / "cloud.las").string() + ": no points");
+  json info;
+  WriteDsm(cloud.xyz, g.crs, o.dsm_resolution_m > 0 ? o.dsm_resolution_m : 0.1, o, path, &info);
+  Log(o, "dem: " + path.string() + " " + std::to_string(info["width"].get<int>()) + " x " +
+             std::to_string(info["height"].get<int>()) + " cells, " +
+             std::to_string(100.0 * info["filled_fraction"].get<double>()) + " % with data");
+}
+
+void CheckSurvey(const PipelineOptions& o) {
+  if (o.checkpoints.empty()) throw InvalidArgument("check: --checkpoints is required");
+  json report = ReadJson(o.workspace / "report.json", "georeference");
+  const GeoFrame g = FrameOf(report);
+  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
+  IngestView ingest = LoadIngest(o);
+  std::map<std::string, int> image_of, ingest_of;
+  for (size_t i = 0; i < model.images.size(); ++i) image_of[model.images[i].name] = static_cast<int>(i);
+  for (size_t i = 0; i < ingest.names.size(); ++i) ingest_of[ingest.names[i]] = static_cast<int>(i);
+  const GcpFile checks = ReadGcpFile(o.checkpoints, o.gcp_pixel_origin);
+  const Crs file_crs = Crs::FromString(checks.crs);
+  std::vector<GroundPointResult> results;
+  std::vector<Eigen::Vector3d> residuals;
+  json warnings = report.value("warnings", json::array());
+  for (const GroundPoint& point : checks.points) {
+    std::vector<View> views;
+    for (const GcpMeasurement& m : point.measurements) {
+      const auto it = image_of.find(m.image);
+      const auto in = ingest_of.find(m.image);
+      if (it == image_of.end() || in == ingest_of.end()) {
+        warnings.push_back(checks.path + ":" + std::to_string(m.line) + ": image '" + m.image +
+                           "' is not registered in the survey; measurement skipped");
+        continue;
+      }
+      const Image& image = model.images[it->second];
+      // Control files measure full-resolution pixels; the model is at the working resolution.
+      const Eigen::Vector2d xy = (m.xy_px.array() + 0.5) / ingest.scale[in->second] - 0.5;
+      views.push_back({&model.cameras[image.camera], image.pose, xy});
+    }
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    const GroundPointResult r = EvaluateGroundPoint(point.name, PointRole::kCheck, views,
+                                                    file_crs.ToGeodetic(point.xyz), g.frame, g.crs, true, &position);
+    if (r.solved) residuals.push_back(r.d_m);
+    results.push_back(r);
+  }
+  GeoreferenceReport partial;
+  partial.check = results;
+  partial.check_stats = AccuracyStats::FromResiduals(residuals);
+  partial.residuals_in_crs_units = !g.crs.IsGeographic();
+  const json fresh = GeoreferenceReportJson(partial, model);
+  report["check_points"] = fresh["check_points"];
+  report["asprs"] = fresh["asprs"];
+  report["warnings"] = warnings;
+  report["check_points"]["file"] = fs::absolute(o.checkpoints).string();
+  WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
+  PipelineOptions again = o;
+  again.force = true;
+  RunReportStage(again);
+}
+
+}  // namespace aerotri

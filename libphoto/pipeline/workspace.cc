@@ -1,0 +1,120 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/pipeline/workspace.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+void Log(const PipelineOptions& o, const std::string& message) {
+  if (o.log) o.log(message);
+}
+
+ProgressCallback StageProgress(const PipelineOptions& o, const std::string& stage) {
+  return o.progress ? o.progress(stage) : ProgressCallback();
+}
+
+double PeakRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+void RecordTiming(const PipelineOptions& o, const std::string& stage, double seconds) {
+  const fs::path path = o.workspace / "timings.json";
+  json timings = json::object();
+  if (fs::exists(path)) {
+    try {
+      timings = json::parse(ReadTextFile(path));
+    } catch (const std::exception&) {
+      timings = json::object();
+    }
+  }
+  timings[stage] = {{"wall_s", seconds}, {"peak_rss_mb", PeakRssMb()}};
+  WriteTextFileAtomically(path, timings.dump(2) + "\n");
+}
+
+unsigned Threads(const PipelineOptions& o) {
+  return o.num_threads > 0 ? static_cast<unsigned>(o.num_threads)
+                           : std::max(1u, std::thread::hardware_concurrency());
+}
+
+json ReadJson(const fs::path& path, const char* stage) {
+  if (!fs::exists(path)) {
+    throw IoError(path.string(), std::string("missing: run the ") + stage + " stage first");
+  }
+  try {
+    return json::parse(ReadTextFile(path));
+  } catch (const json::exception& e) {
+    throw ParseError(path.string(), 0, std::string("corrupt JSON (") + e.what() + "); delete it to redo the stage");
+  }
+}
+
+// The working-resolution size ExtractFeatures / LoadWorkingImage produce.
+std::pair<int, int> WorkingSize(int width, int height, int max_dimension) {
+  const int longer = std::max(width, height);
+  if (max_dimension <= 0 || longer <= max_dimension) return {width, height};
+  const double s = static_cast<double>(longer) / max_dimension;
+  return {static_cast<int>(std::lround(width / s)), static_cast<int>(std::lround(height / s))};
+}
+
+fs::path FeaturePath(const PipelineOptions& o, const std::string& name) {
+  return o.workspace / "features" / (name + ".sift");
+}
+
+IngestView LoadIngest(const PipelineOptions& o) {
+  IngestView v;
+  v.raw = ReadJson(o.workspace / "ingest.json", "ingest");
+  for (const json& g : v.raw.at("groups")) {
+    Camera c;
+    c.id = static_cast<int>(v.cameras.size()) + 1;
+    c.model = CameraModelId::kBrown;
+    c.width = g.at("working_width");
+    c.height = g.at("working_height");
+    c.params = g.at("params").get<std::vector<double>>();
+    v.cameras.push_back(c);
+  }
+  for (const json& im : v.raw.at("images")) {
+    v.names.push_back(im.at("name"));
+    v.usable.push_back(im.at("usable"));
+    v.scale.push_back(im.value("scale", 1.0));
+    v.group.push_back(im.value("group", -1));
+    if (im.contains("gps") && !im["gps"].is_null()) {
+      GpsFix f;
+      f.position = {im["gps"]["lat_deg"], im["gps"]["lon_deg"], im["gps"]["h_m"]};
+      f.sigma_h_m = im["gps"]["sigma_h_m"];
+      f.sigma_v_m = im["gps"]["sigma_v_m"];
+      f.source = im["gps"]["source"];
+      v.gps.push_back(f);
+    } else {
+      v.gps.push_back(std::nullopt);
+    }
+  }
+  return v;
+}
+
+std::vector<ImageFeatures> LoadFeatures(const PipelineOptions& o, IngestView* ingest) {
+  std::vector<ImageFeatures> features(ingest->names.size());
+  for (size_t i = 0; i < ingest->names.size(); ++i) {
+    if (!ingest->usable[i]) continue;
+    const fs::path path = FeaturePath(o, ingest->names[i]);
+    if (!fs::exists(path)) {
+      ingest->usable[i] = false;  // decoding failed in the features stage
+      continue;
+    }
+    features[i] = ReadFeatures(path);
+  }
+  return features;
+}
+
+
+}  // namespace aerotri

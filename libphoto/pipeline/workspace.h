@@ -1,0 +1,47 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// What the pipeline stages share about the workspace folder: reading earlier
+// stages' products, timings, logging and progress.
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "libphoto/features/features.h"
+#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/pipeline/pipeline.h"
+
+namespace aerotri {
+
+void Log(const PipelineOptions& o, const std::string& message);
+ProgressCallback StageProgress(const PipelineOptions& o, const std::string& stage);
+double PeakRssMb();
+// Adds {wall_s, peak_rss_mb} for a stage to OUTPUT/timings.json.
+void RecordTiming(const PipelineOptions& o, const std::string& stage, double seconds);
+unsigned Threads(const PipelineOptions& o);
+// Parses a workspace JSON file; IoError naming the stage to run when missing.
+nlohmann::json ReadJson(const std::filesystem::path& path, const char* stage);
+// The working-resolution size ExtractFeatures / LoadWorkingImage produce.
+std::pair<int, int> WorkingSize(int width, int height, int max_dimension);
+std::filesystem::path FeaturePath(const PipelineOptions& o, const std::string& name);
+
+struct IngestView {
+  std::vector<std::string> names;
+  std::vector<bool> usable;
+  std::vector<double> scale;  // full px per working px
+  std::vector<int> group;
+  std::vector<std::optional<GpsFix>> gps;
+  std::vector<Camera> cameras;  // per group, working px
+  nlohmann::json raw;
+};
+
+IngestView LoadIngest(const PipelineOptions& o);
+// Features of the usable images (empty for others); images whose features
+// are missing are marked unusable.
+std::vector<ImageFeatures> LoadFeatures(const PipelineOptions& o, IngestView* ingest);
+
+}  // namespace aerotri

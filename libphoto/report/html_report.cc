@@ -1,0 +1,350 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/report/html_report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace aerotri {
+namespace {
+
+using json = nlohmann::json;
+
+std::string Escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '&': out += "&amp;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+std::string Num(double v, int decimals = 3) {
+  if (!std::isfinite(v)) return "–";
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  return buf;
+}
+
+double Get(const json& j, const char* key, double fallback = NAN) {
+  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : fallback;
+}
+
+// A horizontal bar chart of one or more series per label.
+std::string BarChart(const std::vector<std::string>& labels, const std::vector<std::vector<double>>& series,
+                     const std::vector<std::string>& names, const std::vector<std::string>& colours,
+                     const std::string& unit) {
+  const int n = static_cast<int>(labels.size());
+  if (n == 0) return "<p>No data.</p>";
+  double lo = 0.0, hi = 0.0;
+  for (const auto& s : series) {
+    for (double v : s) {
+      if (std::isfinite(v)) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+    }
+  }
+  if (hi - lo <= 0) hi = lo + 1;
+  const int row = 6 * static_cast<int>(series.size()) + 6, left = 130, width = 520;
+  const int height = n * row + 40;
+  auto x = [&](double v) { return left + (v - lo) / (hi - lo) * width; };
+  std::ostringstream svg;
+  svg << "<svg viewBox='0 0 " << left + width + 60 << " " << height << "' class='chart'>";
+  svg << "<line x1='" << x(0) << "' y1='0' x2='" << x(0) << "' y2='" << n * row << "' stroke='#888'/>";
+  for (int i = 0; i < n; ++i) {
+    const int y = i * row;
+    svg << "<text x='" << left - 6 << "' y='" << y + row - 4 << "' text-anchor='end' font-size='9'>"
+        << Escape(labels[i]) << "</text>";
+    for (size_t s = 0; s < series.size(); ++s) {
+      const double v = series[s][i];
+      if (!std::isfinite(v)) continue;
+      const double a = x(std::min(0.0, v)), b = x(std::max(0.0, v));
+      svg << "<rect x='" << a << "' y='" << y + 3 + 6 * s << "' width='" << std::max(0.5, b - a)
+          << "' height='5' fill='" << colours[s] << "'><title>" << Escape(labels[i]) << " " << names[s] << ": "
+          << Num(v) << " " << unit << "</title></rect>";
+    }
+  }
+  for (int t = 0; t <= 4; ++t) {
+    const double v = lo + (hi - lo) * t / 4.0;
+    svg << "<text x='" << x(v) << "' y='" << n * row + 14 << "' text-anchor='middle' font-size='9'>" << Num(v, 2)
+        << "</text>";
+  }
+  svg << "<text x='" << left + width / 2 << "' y='" << n * row + 30 << "' text-anchor='middle' font-size='10'>"
+      << Escape(unit);
+  for (size_t s = 0; s < names.size(); ++s) {
+    svg << " <tspan fill='" << colours[s] << "'>■ " << Escape(names[s]) << "</tspan>";
+  }
+  svg << "</text></svg>";
+  return svg.str();
+}
+
+std::string PointTable(const json& group, const char* title) {
+  std::ostringstream h;
+  h << "<h3>" << title << " (" << group.value("count", 0) << ")</h3>";
+  if (!group.contains("points") || group["points"].empty()) return h.str() + "<p>None.</p>";
+  h << "<table><tr><th>name</th><th>images</th><th>dx (m)</th><th>dy (m)</th><th>dz (m)</th><th>3D (m)</th>"
+       "<th>reprojection RMS (px)</th></tr>";
+  for (const auto& p : group["points"]) {
+    h << "<tr><td>" << Escape(p.value("name", "")) << "</td><td>" << p.value("images", 0) << "</td>";
+    if (p.value("solved", false)) {
+      const double dx = Get(p, "dx_m"), dy = Get(p, "dy_m"), dz = Get(p, "dz_m");
+      h << "<td>" << Num(dx) << "</td><td>" << Num(dy) << "</td><td>" << Num(dz) << "</td><td>"
+        << Num(std::sqrt(dx * dx + dy * dy + dz * dz)) << "</td><td>" << Num(Get(p, "reprojection_rms_px"), 2)
+        << "</td>";
+    } else {
+      h << "<td colspan='5'>not solved: " << Escape(p.value("why_not", "")) << "</td>";
+    }
+    h << "</tr>";
+  }
+  h << "<tr class='total'><td>RMSE</td><td></td><td>" << Num(Get(group, "rmse_x_m")) << "</td><td>"
+    << Num(Get(group, "rmse_y_m")) << "</td><td>" << Num(Get(group, "rmse_z_m")) << "</td><td>"
+    << Num(Get(group, "rmse_3d_m")) << "</td><td></td></tr></table>";
+  return h.str();
+}
+
+// Map of cameras, control and check points with horizontal residual vectors.
+std::string SurveyMap(const json& r) {
+  struct Mark {
+    double x, y, dx, dy;
+    std::string name, kind;
+  };
+  std::vector<Mark> marks;
+  for (const auto& c : r.value("cameras", json::array())) {
+    if (c.contains("x")) marks.push_back({c["x"], c["y"], 0, 0, c.value("name", ""), "camera"});
+  }
+  for (const char* group : {"control_points", "check_points"}) {
+    if (!r.contains(group)) continue;
+    for (const auto& p : r[group].value("points", json::array())) {
+      if (!p.value("solved", false) || !p.contains("surveyed")) continue;
+      marks.push_back({p["surveyed"][0], p["surveyed"][1], p["dx_m"], p["dy_m"], p.value("name", ""),
+                       std::string(group) == "control_points" ? "control" : "check"});
+    }
+  }
+  if (marks.empty()) return "<p>No positions to map.</p>";
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300, dmax = 0;
+  for (const Mark& m : marks) {
+    x0 = std::min(x0, m.x);
+    x1 = std::max(x1, m.x);
+    y0 = std::min(y0, m.y);
+    y1 = std::max(y1, m.y);
+    dmax = std::max(dmax, std::hypot(m.dx, m.dy));
+  }
+  const double span = std::max({x1 - x0, y1 - y0, 1.0});
+  const double size = 560, pad = 30, s = (size - 2 * pad) / span;
+  // Residual arrows: the largest is drawn 60 px long; the scale bar says how long 1 cm is.
+  const double arrow = dmax > 0 ? 60.0 / dmax : 0.0;
+  auto px = [&](double x) { return pad + (x - x0) * s; };
+  auto py = [&](double y) { return size - pad - (y - y0) * s; };
+  std::ostringstream svg;
+  svg << "<svg viewBox='0 0 " << size << " " << size + 40 << "' class='map'>"
+      << "<defs><marker id='ah' markerWidth='6' markerHeight='6' refX='5' refY='3' orient='auto'>"
+      << "<path d='M0,0 L6,3 L0,6 z' fill='#c00'/></marker></defs>"
+      << "<rect x='0' y='0' width='" << size << "' height='" << size << "' fill='#f7f7f2' stroke='#ccc'/>";
+  for (const Mark& m : marks) {
+    const double X = px(m.x), Y = py(m.y);
+    if (m.kind == "camera") {
+      svg << "<circle cx='" << X << "' cy='" << Y << "' r='2.5' fill='#4a7'><title>" << Escape(m.name)
+          << "</title></circle>";
+      continue;
+    }
+    const bool control = m.kind == "control";
+    svg << "<path d='M" << X << "," << Y - 6 << " L" << X + 5 << "," << Y + 4 << " L" << X - 5 << "," << Y + 4
+        << " z' fill='" << (control ? "#d80" : "#06c") << "'><title>" << Escape(m.name) << "</title></path>";
+    svg << "<text x='" << X + 7 << "' y='" << Y - 6 << "' font-size='9'>" << Escape(m.name) << "</text>";
+    if (arrow > 0) {
+      svg << "<line x1='" << X << "' y1='" << Y << "' x2='" << X + m.dx * arrow << "' y2='" << Y - m.dy * arrow
+          << "' stroke='#c00' stroke-width='1.5' marker-end='url(#ah)'/>";
+    }
+  }
+  const double bar_m = span / 4.0;
+  svg << "<line x1='" << pad << "' y1='" << size + 12 << "' x2='" << pad + bar_m * s << "' y2='" << size + 12
+      << "' stroke='#000' stroke-width='2'/><text x='" << pad << "' y='" << size + 28 << "' font-size='10'>"
+      << Num(bar_m, 1) << " m (map)</text>";
+  if (arrow > 0) {
+    svg << "<line x1='" << size / 2 << "' y1='" << size + 12 << "' x2='" << size / 2 + 0.01 * arrow << "' y2='"
+        << size + 12 << "' stroke='#c00' stroke-width='2'/><text x='" << size / 2 << "' y='" << size + 28
+        << "' font-size='10' fill='#c00'>1 cm (residual vectors)</text>";
+  }
+  svg << "<text x='" << size - pad << "' y='" << size + 28
+      << "' font-size='10' text-anchor='end'><tspan fill='#4a7'>● camera</tspan> <tspan fill='#d80'>▲ control</tspan> "
+         "<tspan fill='#06c'>▲ check</tspan></text></svg>";
+  return svg.str();
+}
+
+std::string CoverageMap(const json& cov) {
+  if (!cov.is_object() || !cov.contains("counts")) return "<p>No coverage computed.</p>";
+  const int nx = cov["nx"], ny = cov["ny"];
+  const auto counts = cov["counts"].get<std::vector<int>>();
+  int cmax = 1;
+  for (int c : counts) cmax = std::max(cmax, c);
+  const double cell = 400.0 / std::max(nx, ny);
+  std::ostringstream svg;
+  svg << "<svg viewBox='0 0 " << nx * cell + 120 << " " << ny * cell << "' class='map'>";
+  for (int y = 0; y < ny; ++y) {
+    for (int x = 0; x < nx; ++x) {
+      const int c = counts[static_cast<size_t>(y) * nx + x];
+      if (c < 0) continue;
+      const double t = static_cast<double>(c) / cmax;
+      const int red = static_cast<int>(255 * (1 - t)), green = static_cast<int>(80 + 150 * t);
+      svg << "<rect x='" << x * cell << "' y='" << y * cell << "' width='" << cell + 0.5 << "' height='" << cell + 0.5
+          << "' fill='rgb(" << (c == 0 ? 220 : red) << "," << (c == 0 ? 60 : green) << "," << (c == 0 ? 60 : 90)
+          << ")'><title>" << c << " images</title></rect>";
+    }
+  }
+  svg << "<text x='" << nx * cell + 10 << "' y='20' font-size='11'>images per</text><text x='" << nx * cell + 10
+      << "' y='34' font-size='11'>ground point</text><text x='" << nx * cell + 10 << "' y='54' font-size='11'>max "
+      << cmax << "</text></svg>";
+  return svg.str();
+}
+
+}  // namespace
+
+std::string Base64(const std::string& bytes) {
+  static const char* kTable = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const unsigned v = (static_cast<unsigned char>(bytes[i]) << 16) | (static_cast<unsigned char>(bytes[i + 1]) << 8) |
+                       static_cast<unsigned char>(bytes[i + 2]);
+    out += kTable[(v >> 18) & 63];
+    out += kTable[(v >> 12) & 63];
+    out += kTable[(v >> 6) & 63];
+    out += kTable[v & 63];
+  }
+  if (i < bytes.size()) {
+    unsigned v = static_cast<unsigned char>(bytes[i]) << 16;
+    if (i + 1 < bytes.size()) v |= static_cast<unsigned char>(bytes[i + 1]) << 8;
+    out += kTable[(v >> 18) & 63];
+    out += kTable[(v >> 12) & 63];
+    out += i + 1 < bytes.size() ? kTable[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
+  std::ostringstream h;
+  h << "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>aerotri survey report</title><style>"
+       "body{font-family:sans-serif;margin:2em auto;max-width:1000px;color:#222}"
+       "h1{border-bottom:3px solid #4a7}h2{margin-top:1.6em;border-bottom:1px solid #ccc}"
+       "table{border-collapse:collapse;margin:.5em 0;font-size:13px}td,th{border:1px solid #ccc;padding:3px 8px;"
+       "text-align:right}th{background:#eef}td:first-child{text-align:left}tr.total td{font-weight:bold;"
+       "background:#f4f4f4}.cards{display:flex;flex-wrap:wrap;gap:10px}.card{border:1px solid #ccc;"
+       "border-radius:6px;padding:8px 14px;min-width:140px}.card b{display:block;font-size:20px}"
+       "svg.chart{width:100%;max-width:720px}svg.map{width:100%;max-width:600px}.warn{color:#a50}"
+       "img.dsm{max-width:100%;border:1px solid #ccc}</style></head><body>";
+  h << "<h1>aerotri survey report</h1>";
+  const auto& images = r.value("images", json::object());
+  const auto& adj = r.value("adjustment", json::object());
+  h << "<div class='cards'>"
+    << "<div class='card'>images registered<b>" << images.value("registered", 0) << " / " << images.value("total", 0)
+    << "</b></div>"
+    << "<div class='card'>reprojection RMS<b>" << Num(Get(adj, "final_rms_px"), 2) << " px</b></div>"
+    << "<div class='card'>GSD<b>" << Num(Get(r, "gsd_m", NAN) * 100, 1) << " cm</b></div>"
+    << "<div class='card'>check points RMSE 3D<b>" << Num(Get(r.value("check_points", json::object()), "rmse_3d_m"), 3)
+    << " m</b></div>"
+    << "<div class='card'>CRS<b style='font-size:14px'>" << Escape(r.value("crs_name", r.value("crs", std::string("none"))))
+    << "</b></div></div>";
+  h << "<p>CRS " << Escape(r.value("crs", std::string("–"))) << " (" << Escape(r.value("crs_source", std::string("")))
+    << "); adjustment in a local ENU frame at lat " << Num(Get(r.value("enu_origin", json::object()), "lat_deg"), 7)
+    << ", lon " << Num(Get(r.value("enu_origin", json::object()), "lon_deg"), 7) << ", h "
+    << Num(Get(r.value("enu_origin", json::object()), "h_m"), 2) << " m (WGS84 ellipsoid). Datum: "
+    << Escape(adj.value("datum", std::string("–"))) << ".</p>";
+
+  h << "<h2>Accuracy</h2>";
+  if (r.contains("asprs")) {
+    const auto& a = r["asprs"];
+    h << "<table><tr><th>ASPRS statement (" << Escape(a.value("based_on", std::string(""))) << ")</th><th>value (m)</th></tr>"
+      << "<tr><td>2014: horizontal accuracy at 95 % (1.7308 RMSE<sub>r</sub>)</td><td>"
+      << Num(Get(a["edition_2014"], "horizontal_accuracy_95_m")) << "</td></tr>"
+      << "<tr><td>2014: non-vegetated vertical accuracy at 95 % (1.96 RMSE<sub>z</sub>)</td><td>"
+      << Num(Get(a["edition_2014"], "nva_95_m")) << "</td></tr>"
+      << "<tr><td>2023: RMSE<sub>H</sub></td><td>" << Num(Get(a["edition_2023"], "rmse_h_m")) << "</td></tr>"
+      << "<tr><td>2023: RMSE<sub>V</sub></td><td>" << Num(Get(a["edition_2023"], "rmse_v_m")) << "</td></tr>"
+      << "<tr><td>2023: RMSE<sub>3D</sub></td><td>" << Num(Get(a["edition_2023"], "rmse_3d_m")) << "</td></tr></table>";
+  }
+  if (r.contains("check_points")) h << PointTable(r["check_points"], "Check points (never used in the adjustment)");
+  if (r.contains("control_points")) h << PointTable(r["control_points"], "Control points");
+  if (r.contains("dsm") && r["dsm"].contains("check_points")) {
+    const auto& d = r["dsm"]["check_points"];
+    h << "<h3>DSM at the check points</h3><table><tr><th>name</th><th>DSM − surveyed z (m)</th></tr>";
+    for (const auto& p : d.value("points", json::array())) {
+      h << "<tr><td>" << Escape(p.value("name", "")) << "</td><td>"
+        << (p.contains("dz_m") ? Num(Get(p, "dz_m")) : std::string("outside the DSM")) << "</td></tr>";
+    }
+    h << "<tr class='total'><td>RMSE (" << d.value("count", 0) << " points)</td><td>" << Num(Get(d, "rmse_z_m"))
+      << "</td></tr></table>";
+  }
+  h << "<h2>Survey map and residual vectors</h2>" << SurveyMap(r);
+
+  std::vector<std::string> names;
+  std::vector<double> de, dn, du;
+  for (const auto& c : r.value("cameras", json::array())) {
+    if (!c.value("gps_prior", false)) continue;
+    names.push_back(c.value("name", ""));
+    de.push_back(Get(c, "de_m"));
+    dn.push_back(Get(c, "dn_m"));
+    du.push_back(Get(c, "du_m"));
+  }
+  h << "<h2>Camera positions against GPS</h2><p>Adjusted camera centre minus its GPS position (east, north, up).</p>"
+    << BarChart(names, {de, dn, du}, {"east", "north", "up"}, {"#c33", "#36c", "#3a3"}, "metres");
+
+  std::vector<std::string> inames;
+  std::vector<double> rms, pairs;
+  for (const auto& im : images.value("per_image", json::array())) {
+    if (!im.value("registered", false)) continue;
+    inames.push_back(im.value("name", ""));
+    rms.push_back(Get(im, "reprojection_rms_px"));
+  }
+  h << "<h2>Reprojection error per image</h2>"
+    << BarChart(inames, {rms}, {"RMS"}, {"#a6c"}, "pixels (working resolution)");
+  std::vector<std::string> mnames;
+  if (r.contains("matching")) {
+    for (const auto& im : r["matching"].value("per_image", json::array())) {
+      mnames.push_back(im.value("name", ""));
+      pairs.push_back(im.value("verified_pairs", 0));
+    }
+    h << "<h2>Image overlap</h2><p>" << Escape(r["matching"].value("strategy", std::string(""))) << ": "
+      << r["matching"].value("verified_pairs", 0) << " verified pairs of " << r["matching"].value("candidate_pairs", 0)
+      << " candidates.</p>" << BarChart(mnames, {pairs}, {"verified pairs"}, {"#e90"}, "image pairs");
+  }
+  h << "<h3>Coverage</h3>" << CoverageMap(r.value("coverage", json()));
+  h << "<h2>Elevation model</h2>";
+  if (!hillshade_png.empty()) {
+    const auto& d = r.value("dsm", json::object());
+    h << "<p>" << Escape(d.value("file", std::string("dsm.tif"))) << ": " << d.value("width", 0) << " x "
+      << d.value("height", 0) << " cells of " << Num(Get(d, "resolution_m"), 3) << " m, "
+      << Num(100.0 * Get(d, "filled_fraction", NAN), 1) << " % with data. Hillshade:</p>"
+      << "<img class='dsm' alt='DSM hillshade' src='data:image/png;base64," << Base64(hillshade_png) << "'>";
+  } else {
+    h << "<p>No DSM.</p>";
+  }
+  h << "<h2>Images</h2><table><tr><th>image</th><th>registered</th><th>GPS</th><th>RMS (px)</th><th>note</th></tr>";
+  for (const auto& im : images.value("per_image", json::array())) {
+    h << "<tr><td>" << Escape(im.value("name", "")) << "</td><td>" << (im.value("registered", false) ? "yes" : "no")
+      << "</td><td>" << (im.value("gps", false) ? "yes" : "no") << "</td><td>" << Num(Get(im, "reprojection_rms_px"), 2)
+      << "</td><td class='warn'>" << Escape(im.value("why_not", "")) << "</td></tr>";
+  }
+  h << "</table>";
+  std::vector<std::string> warnings;
+  for (const char* key : {"ingest_warnings", "warnings"}) {
+    for (const auto& w : r.value(key, json::array())) warnings.push_back(w.get<std::string>());
+  }
+  if (!warnings.empty()) {
+    h << "<h2>Warnings</h2><ul>";
+    for (const auto& w : warnings) h << "<li class='warn'>" << Escape(w) << "</li>";
+    h << "</ul>";
+  }
+  h << "<p style='color:#888;font-size:11px'>generated by aerotri</p></body></html>\n";
+  return h.str();
+}
+
+}  // namespace aerotri
