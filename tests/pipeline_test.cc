@@ -11,6 +11,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "libphoto/base/atomic_file.h"
+#include "libphoto/export/dsm.h"
+#include "libphoto/export/point_cloud.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/simulate/render.h"
 #include "libphoto/simulate/survey_writer.h"
@@ -112,6 +114,80 @@ TEST_F(Pipeline, PhotosAndControlToACentimetreSurvey) {
   EXPECT_FALSE(RunMatchStage(o));
   EXPECT_FALSE(RunReconstructStage(o));
   EXPECT_FALSE(RunGeoreferenceStage(o));
+  EXPECT_FALSE(RunDenseStage(o));
+  EXPECT_FALSE(RunReportStage(o));
+}
+
+TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
+  PipelineOptions o = Options("ws_gcp");
+  o.gcp = dir_->path() / "survey" / "gcp_list.txt";
+  o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
+  RunPipeline(o);  // resumes what the other test did, if it ran first
+  const Raster dsm = ReadRaster(o.workspace / "dsm.tif");
+  const Raster truth = ReadRaster(dir_->path() / "survey" / "truth" / "dem.tif");
+  // Inside the surveyed area away from its borders (truth has a 10 m margin
+  // around the flown area; stay 8 m further in).
+  const int margin = static_cast<int>(18.0 / truth.geotransform[1]);
+  std::vector<double> abs_err;
+  int cells = 0;
+  for (int y = margin; y < truth.height - margin; ++y) {
+    for (int x = margin; x < truth.width - margin; ++x) {
+      ++cells;
+      const auto z = SampleRaster(dsm, truth.X(x), truth.Y(y));
+      if (z) abs_err.push_back(std::abs(*z - truth.at(x, y)));
+    }
+  }
+  ASSERT_GT(cells, 100);
+  const double filled = static_cast<double>(abs_err.size()) / cells;
+  std::nth_element(abs_err.begin(), abs_err.begin() + abs_err.size() / 2, abs_err.end());
+  const double median = abs_err[abs_err.size() / 2];
+  const auto report = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  const double gsd = report["gsd_m"];
+  EXPECT_GT(filled, 0.95);
+  EXPECT_LT(median, 2.0 * gsd) << "GSD " << gsd;
+  EXPECT_GT(median, 0.002);  // the truth is not copied
+  // The report samples the DSM at the check points.
+  EXPECT_EQ(report["dsm"]["check_points"]["count"], 4);
+  EXPECT_LT(report["dsm"]["check_points"]["rmse_z_m"].get<double>(), 3.0 * gsd);
+  // LAS: our reader gets back the points in the CRS, millimetre-quantised.
+  const CrsCloud las = ReadLas(o.workspace / "cloud.las");
+  EXPECT_EQ(static_cast<long long>(las.xyz.size()), report["dense"]["points"].get<long long>());
+  EXPECT_NE(las.crs_wkt.find("UTM zone 32N"), std::string::npos);
+  EXPECT_NEAR(las.xyz[0].x(), 384900.0, 500.0);
+  // report.html is self-contained and shows what a client needs.
+  const std::string html = ReadTextFile(o.workspace / "report.html");
+  EXPECT_EQ(html.find("src='http"), std::string::npos);
+  EXPECT_EQ(html.find("href='http"), std::string::npos);
+  for (const char* needle : {"<svg", "data:image/png;base64,", "CHK1", "GCP1", "ASPRS", "Check points",
+                             "Camera positions against GPS", "Reprojection error per image", "Coverage"}) {
+    EXPECT_NE(html.find(needle), std::string::npos) << needle;
+  }
+}
+
+TEST_F(Pipeline, CompoundCrsGivesAGeoidHeightDsm) {
+  // Reuse the tie points of a finished run; georeference again in EPSG:32632+5773.
+  PipelineOptions base = Options("ws_gps");
+  RunPipeline(base);
+  PipelineOptions o = Options("ws_compound");
+  fs::create_directories(o.workspace);
+  for (const char* item : {"ingest.json", "matches.bin", "matches.json", "reconstruction.json"}) {
+    fs::copy_file(base.workspace / item, o.workspace / item, fs::copy_options::overwrite_existing);
+  }
+  for (const char* dir : {"features", "reconstruction"}) {
+    fs::copy(base.workspace / dir, o.workspace / dir, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  }
+  o.georef.output_crs = "EPSG:32632+5773";
+  o.gcp = dir_->path() / "survey" / "gcp_list.txt";
+  RunPipeline(o);
+  const Raster ortho = ReadRaster(o.workspace / "dsm.tif");
+  const Raster ellipsoidal = ReadRaster(dir_->path() / "survey" / "truth" / "dem.tif");
+  EXPECT_NE(ortho.wkt.find("EGM96"), std::string::npos);
+  // EGM96 undulation here: 50.09 m (cs2cs EPSG:4979 EPSG:4326+5773 at 46.5 7.5 gives -50.0934).
+  const double cx = ellipsoidal.X(ellipsoidal.width / 2), cy = ellipsoidal.Y(ellipsoidal.height / 2);
+  const auto z = SampleRaster(ortho, cx, cy);
+  ASSERT_TRUE(z.has_value());
+  const float truth = ellipsoidal.at(ellipsoidal.width / 2, ellipsoidal.height / 2);
+  EXPECT_NEAR(truth - *z, 50.09, 0.3);
 }
 
 TEST_F(Pipeline, GpsAloneKeepsCamerasWithinTheGpsNoise) {
