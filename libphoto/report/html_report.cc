@@ -140,8 +140,10 @@ std::string SurveyMap(const json& r) {
   const double size = 560, pad = 30, s = (size - 2 * pad) / span;
   // Residual arrows: the largest is drawn 60 px long; the scale bar says how long 1 cm is.
   const double arrow = dmax > 0 ? 60.0 / dmax : 0.0;
-  auto px = [&](double x) { return pad + (x - x0) * s; };
-  auto py = [&](double y) { return size - pad - (y - y0) * s; };
+  // Centre the survey in the square map.
+  const double ox = 0.5 * (size - 2 * pad - (x1 - x0) * s), oy = 0.5 * (size - 2 * pad - (y1 - y0) * s);
+  auto px = [&](double x) { return pad + ox + (x - x0) * s; };
+  auto py = [&](double y) { return size - pad - oy - (y - y0) * s; };
   std::ostringstream svg;
   svg << "<svg viewBox='0 0 " << size << " " << size + 40 << "' class='map'>"
       << "<defs><marker id='ah' markerWidth='6' markerHeight='6' refX='5' refY='3' orient='auto'>"
