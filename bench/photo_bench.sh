@@ -18,7 +18,7 @@ export QT_QPA_PLATFORM=offscreen
 now() { date +%s.%N; }
 elapsed() { awk "BEGIN{printf \"%.1f\", $2 - $1}"; }
 
-printf "%-22s %-8s %10s %8s %10s %10s %10s %10s %9s %8s\n" set tool registered rms_px features_s matching_s mapping_s georef_s total_s rss_MB
+printf "%-22s %-8s %10s %8s %10s %10s %10s %10s %14s %9s %8s\n" set tool registered rms_px features_s matching_s mapping_s georef_s sparse_total_s dense_s rss_MB
 for s in "${sets[@]}"; do
   images="$data/$s/images"
   [ -d "$images" ] || { echo "photo_bench: $images is absent" >&2; continue; }
@@ -29,17 +29,19 @@ for s in "${sets[@]}"; do
   t0=$(now)
   /usr/bin/time -f "%M" -o "$work/rss.txt" "$exe" run "$images" -o "$ws" --quiet >/dev/null
   t1=$(now)
-  read -r reg rms tf tm tr tg < <(/usr/bin/python3 - "$ws" <<'PY'
+  read -r reg rms tf tm tr tg sparse dense < <(/usr/bin/python3 - "$ws" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1] + "/report.json"))
 t = r["timings"]
+w = lambda k: t.get(k, {}).get("wall_s", 0.0)
+sparse = w("ingest") + w("features") + w("match") + w("reconstruct") + w("georeference")
 print(r["images"]["registered"], round(r["adjustment"]["final_rms_px"], 3),
-      round(t["ingest"]["wall_s"] + t["features"]["wall_s"], 1), round(t["match"]["wall_s"], 1),
-      round(t["reconstruct"]["wall_s"], 1), round(t["georeference"]["wall_s"], 1))
+      round(w("ingest") + w("features"), 1), round(w("match"), 1), round(w("reconstruct"), 1),
+      round(w("georeference"), 1), round(sparse, 1), round(w("dense") + w("report"), 1))
 PY
 )
-  printf "%-22s %-8s %10s %8s %10s %10s %10s %10s %9s %8.0f\n" "$s" aerotri "$reg/$total_images" "$rms" "$tf" "$tm" "$tr" "$tg" \
-    "$(elapsed "$t0" "$t1")" "$(awk '{print $1/1024}' "$work/rss.txt")"
+  printf "%-22s %-8s %10s %8s %10s %10s %10s %10s %14s %9s %8.0f\n" "$s" aerotri "$reg/$total_images" "$rms" "$tf" "$tm" "$tr" "$tg" \
+    "$sparse" "$dense" "$(awk '{print $1/1024}' "$work/rss.txt")"
 
   command -v colmap >/dev/null || continue
   cw="$work/colmap_$s"
@@ -59,7 +61,8 @@ PY
     reg=$(grep -v '^#' "$cw/sparse/0/images.txt" | awk 'NR % 2 == 1' | grep -c . || true)
     rms=$(colmap model_analyzer --path "$cw/sparse/0" 2>&1 | sed -nE 's/.*Mean reprojection error: ([0-9.]+)px.*/\1/p' | head -1)
   fi
-  printf "%-22s %-8s %10s %8s %10s %10s %10s %10s %9s %8s\n" "$s" colmap "$reg/$total_images" "${rms:--}" \
-    "$(elapsed "$t0" "$t1")" "$(elapsed "$t1" "$t2")" "$(elapsed "$t2" "$t3")" "-" "$(elapsed "$t0" "$t3")" "-"
+  printf "%-22s %-8s %10s %8s %10s %10s %10s %10s %14s %9s %8s\n" "$s" colmap "$reg/$total_images" "${rms:--}" \
+    "$(elapsed "$t0" "$t1")" "$(elapsed "$t1" "$t2")" "$(elapsed "$t2" "$t3")" "-" "$(elapsed "$t0" "$t3")" "-" "-"
 done
+echo "(sparse_total_s: photos to adjusted sparse survey, what COLMAP's three steps do; dense_s: aerotri's dense cloud, LAS/PLY, DSM and report)"
 echo "(aerotri rms_px: RMS at its working resolution, 1600 px; COLMAP: its mean reprojection error)"
