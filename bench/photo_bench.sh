@@ -48,7 +48,7 @@ PY
   rm -rf "$cw" && mkdir -p "$cw/sparse"
   t0=$(now)
   colmap feature_extractor --database_path "$cw/db.db" --image_path "$images" \
-    --SiftExtraction.use_gpu 0 --SiftExtraction.max_image_size 3200 --ImageReader.single_camera 1 >/dev/null 2>&1
+    --SiftExtraction.use_gpu 0 --SiftExtraction.max_image_size 3200 >/dev/null 2>&1
   t1=$(now)
   colmap spatial_matcher --database_path "$cw/db.db" --SiftMatching.use_gpu 0 >/dev/null 2>&1
   t2=$(now)

@@ -373,20 +373,24 @@ class Mapper {
     return any;
   }
 
-  // Attitude of the nearest registered images in capture order (index order).
+  // Attitude of a registered capture-order neighbour (index order, up to 3
+  // away): the one closest by GPS. Interpolating between the two sides would
+  // be wrong at a strip's end, where the next photo flies the other way.
   std::optional<Eigen::Quaterniond> NeighbourAttitude(int image) const {
     const int n = static_cast<int>(model_.images.size());
-    for (int d = 1; d < n; ++d) {
-      const int before = image - d, after = image + d;
-      const bool b = before >= 0 && model_.images[before].registered;
-      const bool a = after < n && model_.images[after].registered;
-      if (b && a) {
-        return model_.images[before].pose.cam_from_world.slerp(0.5, model_.images[after].pose.cam_from_world);
+    int best = -1;
+    double best_distance = 1e300;
+    for (int d = -3; d <= 3; ++d) {
+      const int j = image + d;
+      if (d == 0 || j < 0 || j >= n || !model_.images[j].registered) continue;
+      const double distance = gps_[image] && gps_[j] ? (*gps_[image] - *gps_[j]).norm() : 1e6 + std::abs(d);
+      if (distance < best_distance) {
+        best_distance = distance;
+        best = j;
       }
-      if (b) return model_.images[before].pose.cam_from_world;
-      if (a) return model_.images[after].pose.cam_from_world;
     }
-    return std::nullopt;
+    if (best < 0) return std::nullopt;
+    return model_.images[best].pose.cam_from_world;
   }
 
   bool RescueImage(int image, const Similarity& model_from_gps, const Similarity& gps_from_model,
