@@ -209,6 +209,46 @@ TEST(BundleAdjuster, ReportsWeakImagesAndBehindCameraObservations) {
   EXPECT_NE(summary.BriefReport().find("behind their camera"), std::string::npos);
 }
 
+TEST(BundleAdjuster, FocalPriorHoldsFocalLengthOverFlatGround) {
+  // Nadir photos of flat ground with GPS observe focal length over depth
+  // only: started 15 % off, the focal length stays off without a prior and
+  // comes back with the EXIF prior.
+  SyntheticSurveyOptions o = SmallSurvey(17);
+  o.attitude_sigma_deg = 0.0;
+  // No lens distortion: distortion, seen at other radii when the focal length
+  // changes, would otherwise tell focal length and depth apart.
+  for (int i = 3; i < 8; ++i) o.brown_params[i] = 0.0;
+  SyntheticSurvey survey = MakeSyntheticSurvey(o);
+  // Level ground (every point at height 0) under a level flight (every
+  // camera at 80 m), observations re-projected exactly.
+  for (Point& p : survey.truth.points) p.position.z() = 0.0;
+  for (Image& image : survey.truth.images) image.pose.centre_in_world.z() = 80.0;
+  for (Observation& obs : survey.truth.observations) {
+    const Image& image = survey.truth.images[obs.image];
+    obs.xy = survey.truth.cameras[0].ImageFromCamera(image.pose.CamFromWorld(survey.truth.points[obs.point].position));
+  }
+  auto run = [&](bool prior) {
+    SparseModel model = survey.truth;
+    for (size_t i = 0; i < model.images.size(); ++i) {
+      model.images[i].gps_prior = PositionPrior{survey.truth.images[i].pose.centre_in_world, 0.5, 0.5};
+    }
+    // Start in the other solution of the ambiguity: focal length and depth
+    // both 15 % larger (the ground lower, the same images).
+    model.cameras[0].params[0] *= 1.15;
+    const double camera_height = survey.truth.images[0].pose.centre_in_world.z();
+    for (Point& p : model.points) {
+      p.position.z() = camera_height - 1.15 * (camera_height - p.position.z());
+    }
+    BundleOptions options;
+    options.refine_intrinsics = IntrinsicsRefinement::kFocal;
+    if (prior) options.focal_prior_px = {o.brown_params[0]};
+    AdjustBundle(&model, options);
+    return model.cameras[0].params[0] / o.brown_params[0] - 1.0;
+  };
+  EXPECT_GT(std::abs(run(false)), 0.05);
+  EXPECT_LT(std::abs(run(true)), 0.01);
+}
+
 TEST(BundleOptions, ValidateNamesTheOption) {
   BundleOptions options;
   std::string error;

@@ -353,6 +353,15 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       ++result.num_gps;
     }
   }
+  for (size_t c = 0; c < model->cameras.size() && c < options.focal_prior_px.size(); ++c) {
+    Camera& camera = model->cameras[c];
+    const double f0 = options.focal_prior_px[c];
+    if (!(f0 > 0) || !camera_used[c] || !problem.HasParameterBlock(camera.params.data())) continue;
+    const int index = camera.info().focal_params.at(0);
+    problem.AddResidualBlock(
+        new ParameterPriorCost(camera.info().num_params(), index, f0, options.focal_prior_sigma_rel * f0),
+        nullptr, camera.params.data());
+  }
   if (options.use_gcp_priors) {
     for (size_t p = 0; p < model->points.size(); ++p) {
       Point& point = model->points[p];

@@ -70,6 +70,14 @@ struct BundleOptions {
   // EXIF focal length fixed would bend the whole block).
   int min_images_to_refine_intrinsics = 1;
 
+  // Prior on each camera group's focal length (index-aligned with
+  // SparseModel::cameras; 0 = none), with a relative sigma. Nadir photos of
+  // flat ground observe only focal length over depth: without this prior a
+  // GPS-only block may trade one for the other. Only EXIF focal lengths
+  // measured in millimetres with a sensor size get one (ingest.json).
+  std::vector<double> focal_prior_px;
+  double focal_prior_sigma_rel = 0.10;
+
   bool use_gps_priors = true;
   bool use_gcp_priors = true;
 

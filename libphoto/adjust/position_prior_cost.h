@@ -37,4 +37,29 @@ class PositionPriorCost final : public ceres::SizedCostFunction<3, 3> {
   Eigen::Vector3d inv_sigma_;
 };
 
+// Prior on one parameter of a block of size n (a camera's focal length):
+// r = (x[index] - prior) / sigma.
+class ParameterPriorCost final : public ceres::CostFunction {
+ public:
+  ParameterPriorCost(int block_size, int index, double prior, double sigma)
+      : index_(index), prior_(prior), inv_sigma_(1.0 / sigma) {
+    set_num_residuals(1);
+    mutable_parameter_block_sizes()->push_back(block_size);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    residuals[0] = (parameters[0][index_] - prior_) * inv_sigma_;
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      const int n = parameter_block_sizes()[0];
+      for (int i = 0; i < n; ++i) jacobians[0][i] = i == index_ ? inv_sigma_ : 0.0;
+    }
+    return true;
+  }
+
+ private:
+  int index_;
+  double prior_;
+  double inv_sigma_;
+};
+
 }  // namespace aerotri

@@ -322,6 +322,7 @@ bool RunReconstructStage(const PipelineOptions& o) {
   MapperOptions mo = o.mapper;
   mo.num_threads = o.num_threads;
   mo.progress = StageProgress(o, "reconstruct");
+  mo.focal_prior_px = ingest.focal_prior_px;
   std::vector<std::optional<Eigen::Vector3d>> gps(ingest.names.size());
   std::optional<LocalFrame> frame;
   for (size_t i = 0; i < gps.size(); ++i) {
@@ -445,6 +446,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   if (can_georeference && !model.images.empty()) {
     GeoreferenceOptions go = o.georef;
     go.bundle.num_threads = o.num_threads;
+    go.bundle.focal_prior_px = ingest.focal_prior_px;
     go.progress = StageProgress(o, "georeference");
     GeoreferenceReport georef = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
                                                       checks ? &*checks : nullptr, go);

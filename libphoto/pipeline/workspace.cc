@@ -82,6 +82,8 @@ IngestView LoadIngest(const PipelineOptions& o) {
     c.height = g.at("working_height");
     c.params = g.at("params").get<std::vector<double>>();
     v.cameras.push_back(c);
+    const bool measured = g.value("focal_source", std::string()).rfind("EXIF focal length", 0) == 0;
+    v.focal_prior_px.push_back(measured ? c.focal_px() : 0.0);
   }
   for (const json& im : v.raw.at("images")) {
     v.names.push_back(im.at("name"));

@@ -36,6 +36,9 @@ struct IngestView {
   std::vector<int> group;
   std::vector<std::optional<GpsFix>> gps;
   std::vector<Camera> cameras;  // per group, working px
+  // Per group: the EXIF focal length (working px) when EXIF gave it in
+  // millimetres with a sensor size; 0 when it was a guess.
+  std::vector<double> focal_prior_px;
   nlohmann::json raw;
 };
 

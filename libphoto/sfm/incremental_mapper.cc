@@ -600,6 +600,7 @@ class Mapper {
       o.refine_intrinsics = IntrinsicsRefinement::kNone;
     }
     o.min_images_to_refine_intrinsics = 3;
+    o.focal_prior_px = options_.focal_prior_px;
     AdjustBundle(&model_, o);
     ++adjustments_;
     // Points left with fewer than two observations are dropped (their tracks

@@ -43,6 +43,8 @@ struct MapperOptions {
   double rescue_search_radius_px = 250.0;  // offset search, working resolution
 
   int num_threads = 0;
+  // Focal-length priors per camera group (see BundleOptions).
+  std::vector<double> focal_prior_px;
   ProgressCallback progress;
 };
 
