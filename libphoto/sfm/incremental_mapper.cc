@@ -274,6 +274,37 @@ class Mapper {
     return out;
   }
 
+  // PnP RANSAC (P3P) on 2D-3D correspondences given as undistorted rays,
+  // refined by Levenberg-Marquardt on the inliers. std::nullopt when fewer
+  // than min_pnp_inliers, or less than min_inlier_ratio of them, agree.
+  std::optional<Pose> SolvePnP(int image, const std::vector<cv::Point3d>& world,
+                               const std::vector<cv::Point2d>& rays, double min_inlier_ratio,
+                               std::vector<int>* inliers) const {
+    cv::Mat rvec, tvec;
+    inliers->clear();
+    const double threshold = options_.max_reprojection_px / Focal(image);
+    const bool ok = cv::solvePnPRansac(world, rays, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec, false,
+                                       2000, threshold, 0.9999, *inliers, cv::SOLVEPNP_AP3P);
+    if (!ok || static_cast<int>(inliers->size()) < options_.min_pnp_inliers ||
+        inliers->size() < min_inlier_ratio * world.size()) {
+      return std::nullopt;
+    }
+    std::vector<cv::Point3d> wi;
+    std::vector<cv::Point2d> ri;
+    for (int k : *inliers) {
+      wi.push_back(world[k]);
+      ri.push_back(rays[k]);
+    }
+    cv::solvePnPRefineLM(wi, ri, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec);
+    cv::Mat rm;
+    cv::Rodrigues(rvec, rm);
+    Eigen::Matrix3d R;
+    Eigen::Vector3d T;
+    cv::cv2eigen(rm, R);
+    cv::cv2eigen(tvec, T);
+    return Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+  }
+
   bool Register(int image) {
     std::vector<cv::Point3d> world;
     std::vector<cv::Point2d> rays;
@@ -295,34 +326,17 @@ class Mapper {
       ++failures_[image];
       return false;
     }
-    cv::Mat rvec, tvec;
     std::vector<int> inliers;
-    const double threshold = options_.max_reprojection_px / Focal(image);
-    const bool ok = cv::solvePnPRansac(world, rays, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec,
-                                       false, 2000, threshold, 0.9999, inliers, cv::SOLVEPNP_AP3P);
+    const auto pose = SolvePnP(image, world, rays, 0.2, &inliers);
     st.inliers = static_cast<int>(inliers.size());
-    if (!ok || static_cast<int>(inliers.size()) < options_.min_pnp_inliers ||
-        inliers.size() < 0.2 * world.size()) {
+    if (!pose) {
       st.why_not = "PnP found " + std::to_string(inliers.size()) + " inliers of " +
                    std::to_string(world.size()) + " 2D-3D correspondences";
       ++failures_[image];
       return false;
     }
-    std::vector<cv::Point3d> wi;
-    std::vector<cv::Point2d> ri;
-    for (int k : inliers) {
-      wi.push_back(world[k]);
-      ri.push_back(rays[k]);
-    }
-    cv::solvePnPRefineLM(wi, ri, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec);
-    cv::Mat rm;
-    cv::Rodrigues(rvec, rm);
-    Eigen::Matrix3d R;
-    Eigen::Vector3d T;
-    cv::cv2eigen(rm, R);
-    cv::cv2eigen(tvec, T);
     Image& img = model_.images[image];
-    img.pose = Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+    img.pose = *pose;
     img.registered = true;
     st.registered = true;
     st.why_not.clear();
@@ -529,30 +543,14 @@ class Mapper {
                      " 2D-3D correspondences";
         return false;
       }
-      cv::Mat rvec, tvec;
       std::vector<int> inliers;
-      const double threshold = options_.max_reprojection_px / Focal(image);
-      if (!cv::solvePnPRansac(world, rays, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec, false,
-                              2000, threshold, 0.9999, inliers, cv::SOLVEPNP_AP3P) ||
-          static_cast<int>(inliers.size()) < options_.min_pnp_inliers || inliers.size() < 0.3 * world.size()) {
+      const auto solved = SolvePnP(image, world, rays, 0.3, &inliers);
+      if (!solved) {
         st.why_not = "guided matching from GPS: PnP found " + std::to_string(inliers.size()) +
                      " inliers of " + std::to_string(world.size());
         return false;
       }
-      std::vector<cv::Point3d> wi;
-      std::vector<cv::Point2d> ri;
-      for (int k : inliers) {
-        wi.push_back(world[k]);
-        ri.push_back(rays[k]);
-      }
-      cv::solvePnPRefineLM(wi, ri, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec);
-      cv::Mat rm;
-      cv::Rodrigues(rvec, rm);
-      Eigen::Matrix3d R;
-      Eigen::Vector3d T;
-      cv::cv2eigen(rm, R);
-      cv::cv2eigen(tvec, T);
-      pose = Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+      pose = *solved;
       refined_pose = true;
       if (radius > 3.0 * options_.max_reprojection_px) continue;  // second, tight pass
       // The pose found must agree with the GPS position it started from.
