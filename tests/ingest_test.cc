@@ -1,0 +1,104 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// EXIF through GDAL (written by GDAL's JPEG driver, read back), GPS CSV files
+// and altitude references, and focal length from EXIF.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "camera_models/exif_intrinsics.h"
+#include "libphoto/base/error.h"
+#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/ingest/image_metadata.h"
+#include "libphoto/io/image_writer.h"
+#include "tests/test_util.h"
+
+namespace aerotri {
+namespace {
+
+TEST(ImageMetadata, ExifGpsAndOpticsRoundTripThroughGdal) {
+  testing::TempDir dir;
+  cv::Mat image(48, 64, CV_8UC3, cv::Scalar(40, 120, 200));
+  std::map<std::string, std::string> exif = {
+      {"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"},
+      {"EXIF_GPSLatitude", ExifDms(46.842609)}, {"EXIF_GPSLatitudeRef", "N"},
+      {"EXIF_GPSLongitude", ExifDms(91.994561)}, {"EXIF_GPSLongitudeRef", "W"},
+      {"EXIF_GPSAltitude", "(198.309)"}, {"EXIF_GPSAltitudeRef", "0x00"},
+      {"EXIF_FocalLength", "(3.61)"}, {"EXIF_FocalLengthIn35mmFilm", "20"}};
+  WriteJpegWithExif(dir / "a.jpg", image, exif);
+  const ImageMetadata m = ReadImageMetadata(dir / "a.jpg");
+  EXPECT_EQ(m.width, 64);
+  EXPECT_EQ(m.height, 48);
+  EXPECT_EQ(m.make, "DJI");
+  ASSERT_TRUE(m.HasGps());
+  // EXIF stores seconds to 1e-4": 3 mm.
+  EXPECT_NEAR(*m.lat_deg, 46.842609, 1e-7);
+  EXPECT_NEAR(*m.lon_deg, -91.994561, 1e-7);
+  EXPECT_NEAR(*m.gps_altitude_m, 198.309, 1e-3);
+  EXPECT_NEAR(*m.focal_mm, 3.61, 1e-6);
+  // A known drone camera: 3.61 mm on a 6.17 mm wide sensor, 64 px wide.
+  ExifOptics optics{m.make, m.model, m.focal_mm, m.focal_35mm, m.focal_plane_px_per_mm,
+                    m.exif_pixel_width, m.width, m.height};
+  const FocalEstimate f = FocalFromExif(optics);
+  EXPECT_NEAR(f.focal_px, 3.61 / 6.17 * 64, 1e-9);
+  EXPECT_NE(f.source.find("known sensor width"), std::string::npos);
+
+  std::ofstream(dir / "broken.jpg") << "not an image";
+  EXPECT_THROW(ReadImageMetadata(dir / "broken.jpg"), IoError);
+}
+
+TEST(GpsSources, Egm96AltitudesBecomeEllipsoidalHeights) {
+  // expected: echo "46.5 7.5 0" | cs2cs EPSG:4979 EPSG:4326+5773 -> -50.0934 (N = 50.0934 m)
+  EXPECT_NEAR(EllipsoidalHeight(46.5, 7.5, 500.0, AltitudeReference::kEgm96), 550.0934, 1e-3);
+  EXPECT_DOUBLE_EQ(EllipsoidalHeight(46.5, 7.5, 500.0, AltitudeReference::kEllipsoid), 500.0);
+}
+
+TEST(GpsSources, CsvWithHeaderSigmasAndClearErrors) {
+  testing::TempDir dir;
+  std::ofstream(dir / "gps.csv") << "name,lat,lon,alt\n# comment\nA.JPG,46.5,7.5,500\nB.JPG;46.6;7.6;510;0.02;0.05\n";
+  const auto fixes = ReadGpsCsv(dir / "gps.csv", AltitudeReference::kEllipsoid, 3.0, 5.0);
+  ASSERT_EQ(fixes.size(), 2u);
+  EXPECT_DOUBLE_EQ(fixes.at("A.JPG").sigma_h_m, 3.0);
+  EXPECT_DOUBLE_EQ(fixes.at("B.JPG").sigma_v_m, 0.05);
+  EXPECT_DOUBLE_EQ(fixes.at("B.JPG").position.h_m, 510.0);
+  struct Case {
+    std::string text;
+    int line;
+    std::string message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"A.JPG,46.5,7.5\n", 1, "expected 4 or 6 fields"},
+           {"name,lat,lon,alt\nA.JPG,95,7.5,500\n", 2, "expected lat in [-90, 90]"},
+           {"A.JPG,46.5,x,500\n", 1, "expected a number for lon, got 'x'"},
+           {"A.JPG,46.5,7.5,500\nA.JPG,46.5,7.5,500\n", 2, "appears twice"},
+           {"A.JPG,46.5,7.5,500,0,1\n", 1, "expected positive sigmas"}}) {
+    std::ofstream(dir / "bad.csv") << c.text;
+    try {
+      ReadGpsCsv(dir / "bad.csv", AltitudeReference::kEllipsoid, 3.0, 5.0);
+      ADD_FAILURE() << "accepted " << c.text;
+    } catch (const ParseError& e) {
+      EXPECT_EQ(e.line(), c.line) << e.what();
+      EXPECT_NE(std::string(e.what()).find(c.message), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(ExifIntrinsics, FallsBackInOrderAndSaysSo) {
+  ExifOptics o;
+  o.width = 3600;
+  o.height = 2700;
+  o.focal_mm = 4.3;
+  o.focal_plane_px_per_mm = 16393.4 / 25.4;  // Canon ELPH 300 HS, 4000 px wide originally
+  o.exif_pixel_width = 4000;
+  EXPECT_NEAR(FocalFromExif(o).focal_px, 4.3 * 16393.4 / 25.4 * 0.9, 1e-9);
+  o.focal_plane_px_per_mm.reset();
+  o.focal_35mm = 24;
+  EXPECT_NEAR(FocalFromExif(o).focal_px, 24.0 / 36.0 * 3600, 1e-9);
+  o.focal_35mm.reset();
+  o.focal_mm.reset();
+  const FocalEstimate guess = FocalFromExif(o);
+  EXPECT_NEAR(guess.focal_px, 0.85 * 3600, 1e-9);
+  EXPECT_NE(guess.source.find("assumed"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace aerotri
