@@ -164,6 +164,25 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
   }
 }
 
+TEST_F(Pipeline, InterruptedDenseStageResumesToTheSameCloud) {
+  PipelineOptions o = Options("ws_gcp");
+  o.gcp = dir_->path() / "survey" / "gcp_list.txt";
+  o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
+  RunPipeline(o);
+  const auto before = nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"));
+  EXPECT_GE(before["tiles"].get<int>(), 1);
+  // Interrupted after some depth maps: the cloud is missing, one depth map too.
+  fs::remove(o.workspace / "cloud.las");
+  std::vector<fs::path> depth;
+  for (const auto& e : fs::directory_iterator(o.workspace / "depth")) depth.push_back(e.path());
+  ASSERT_GT(depth.size(), 3u);
+  fs::remove(depth[1]);
+  EXPECT_TRUE(RunDenseStage(o));
+  EXPECT_TRUE(fs::exists(depth[1]));
+  const auto after = nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"));
+  EXPECT_EQ(after["points"], before["points"]);
+}
+
 TEST_F(Pipeline, CompoundCrsGivesAGeoidHeightDsm) {
   // Reuse the tie points of a finished run; georeference again in EPSG:32632+5773.
   PipelineOptions base = Options("ws_gps");

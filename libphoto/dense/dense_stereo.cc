@@ -3,11 +3,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 #include <map>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
+#include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
 
 namespace aerotri {
@@ -83,6 +86,135 @@ struct Voxel {
   std::uint16_t views = 0;
 };
 
+// The points of one depth map on disk, so that fusion can run tile by tile
+// (memory bounded by a tile, not the survey) and an interrupted run resumes.
+// File: "AERPTS01", uint64 count, double bbox[6] (min xyz, max xyz), then
+// count x (float32 x, y, z in the adjustment frame, uint8 r, g, b).
+class DepthPoints {
+ public:
+  static constexpr size_t kRecord = 15;
+  void Add(const Eigen::Vector3d& x, std::uint8_t r, std::uint8_t g, std::uint8_t b) {
+    const float v[3] = {static_cast<float>(x.x()), static_cast<float>(x.y()), static_cast<float>(x.z())};
+    const size_t at = data_.size();
+    data_.resize(at + kRecord);
+    std::memcpy(&data_[at], v, 12);
+    data_[at + 12] = static_cast<char>(r);
+    data_[at + 13] = static_cast<char>(g);
+    data_[at + 14] = static_cast<char>(b);
+    lo_ = lo_.cwiseMin(x);
+    hi_ = hi_.cwiseMax(x);
+  }
+  size_t count() const { return data_.size() / kRecord; }
+  void Write(const std::filesystem::path& path) const {
+    WriteFileAtomically(path, [&](std::ostream& out) {
+      const std::uint64_t n = count();
+      out.write("AERPTS01", 8);
+      out.write(reinterpret_cast<const char*>(&n), 8);
+      out.write(reinterpret_cast<const char*>(lo_.data()), 24);
+      out.write(reinterpret_cast<const char*>(hi_.data()), 24);
+      out.write(data_.data(), static_cast<std::streamsize>(data_.size()));
+    });
+  }
+  // Reads the header (bbox) and, with points, the records.
+  static DepthPoints Read(const std::filesystem::path& path, bool points) {
+    std::ifstream in(path, std::ios::binary);
+    char magic[8];
+    std::uint64_t n = 0;
+    DepthPoints d;
+    if (!in.read(magic, 8) || std::memcmp(magic, "AERPTS01", 8) != 0 || !in.read(reinterpret_cast<char*>(&n), 8) ||
+        !in.read(reinterpret_cast<char*>(d.lo_.data()), 24) || !in.read(reinterpret_cast<char*>(d.hi_.data()), 24)) {
+      throw IoError(path.string(), "not a complete depth-point file; delete it to recompute");
+    }
+    if (points) {
+      d.data_.resize(n * kRecord);
+      if (!in.read(d.data_.data(), static_cast<std::streamsize>(d.data_.size()))) {
+        throw IoError(path.string(), "truncated depth-point file; delete it to recompute");
+      }
+    }
+    return d;
+  }
+  Eigen::Vector3d Point(size_t k, std::uint8_t* rgb) const {
+    float v[3];
+    std::memcpy(v, &data_[k * kRecord], 12);
+    for (int c = 0; c < 3; ++c) rgb[c] = static_cast<std::uint8_t>(data_[k * kRecord + 12 + c]);
+    return {v[0], v[1], v[2]};
+  }
+  const Eigen::Vector3d& lo() const { return lo_; }
+  const Eigen::Vector3d& hi() const { return hi_; }
+
+ private:
+  std::vector<char> data_;
+  Eigen::Vector3d lo_ = Eigen::Vector3d::Constant(1e300);
+  Eigen::Vector3d hi_ = Eigen::Vector3d::Constant(-1e300);
+};
+
+// Fuses depth-point files tile by tile: a tile holds at most tile_voxels x
+// tile_voxels columns of voxels, and only the files whose bounding box meets
+// it are read for it.
+DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& o,
+                DenseSummary* s) {
+  DenseCloud cloud;
+  cloud.resolution_m = res;
+  if (files.empty()) return cloud;
+  std::vector<Eigen::Vector3d> lo, hi;
+  Eigen::Vector2d all_lo(1e300, 1e300), all_hi(-1e300, -1e300);
+  for (const auto& f : files) {
+    const DepthPoints h = DepthPoints::Read(f, false);
+    lo.push_back(h.lo());
+    hi.push_back(h.hi());
+    all_lo = all_lo.cwiseMin(h.lo().head<2>());
+    all_hi = all_hi.cwiseMax(h.hi().head<2>());
+  }
+  const long long tile_voxels = o.tile_voxels > 0 ? o.tile_voxels : 1500;
+  const double tile = tile_voxels * res;
+  const long long x0 = static_cast<long long>(std::floor(all_lo.x() / tile));
+  const long long y0 = static_cast<long long>(std::floor(all_lo.y() / tile));
+  const long long x1 = static_cast<long long>(std::floor(all_hi.x() / tile));
+  const long long y1 = static_cast<long long>(std::floor(all_hi.y() / tile));
+  for (long long ty = y0; ty <= y1; ++ty) {
+    for (long long tx = x0; tx <= x1; ++tx) {
+      const double bx0 = tx * tile, bx1 = (tx + 1) * tile, by0 = ty * tile, by1 = (ty + 1) * tile;
+      std::unordered_map<std::uint64_t, Voxel> voxels;
+      for (size_t f = 0; f < files.size(); ++f) {
+        if (hi[f].x() < bx0 || lo[f].x() >= bx1 || hi[f].y() < by0 || lo[f].y() >= by1) continue;
+        const DepthPoints d = DepthPoints::Read(files[f], true);
+        for (size_t k = 0; k < d.count(); ++k) {
+          std::uint8_t rgb[3];
+          const Eigen::Vector3d x = d.Point(k, rgb);
+          // The tile owns the voxels whose index lies in it: no seams.
+          const long long ix = static_cast<long long>(std::floor(x.x() / res));
+          const long long iy = static_cast<long long>(std::floor(x.y() / res));
+          if (ix < tx * tile_voxels || ix >= (tx + 1) * tile_voxels || iy < ty * tile_voxels ||
+              iy >= (ty + 1) * tile_voxels) {
+            continue;
+          }
+          Voxel& vx = voxels[VoxelKey(x, res)];
+          for (int c = 0; c < 3; ++c) {
+            vx.sum[c] += x[c];
+            vx.rgb[c] += rgb[c];
+          }
+          ++vx.count;
+          if (vx.last_map != static_cast<int>(f)) {
+            vx.last_map = static_cast<int>(f);
+            ++vx.views;
+          }
+        }
+      }
+      if (!voxels.empty()) ++s->tiles;
+      for (const auto& [key, vx] : voxels) {
+        if (vx.views < o.min_views) continue;
+        cloud.positions.emplace_back(vx.sum[0] / vx.count, vx.sum[1] / vx.count, vx.sum[2] / vx.count);
+        cloud.colours.push_back({static_cast<std::uint8_t>(vx.rgb[0] / vx.count),
+                                 static_cast<std::uint8_t>(vx.rgb[1] / vx.count),
+                                 static_cast<std::uint8_t>(vx.rgb[2] / vx.count)});
+        cloud.views.push_back(vx.views);
+      }
+    }
+  }
+  s->fused_points = static_cast<long long>(cloud.positions.size());
+  return cloud;
+}
+
 }  // namespace
 
 double MedianGsd(const SparseModel& model) {
@@ -107,16 +239,24 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
   if (!(res > 0)) throw InvalidArgument("dense matching needs a registered model with points");
   s.resolution_m = res;
   const std::vector<Partner> partners = ChoosePartners(model, o);
-  std::unordered_map<std::uint64_t, Voxel> voxels;
 
   std::vector<int> order;
   for (size_t i = 0; i < model.images.size(); ++i) {
     if (model.images[i].registered && partners[i].image >= 0) order.push_back(static_cast<int>(i));
   }
+  if (o.work_dir.empty()) throw InvalidArgument("dense matching needs a folder for its depth points");
+  std::filesystem::create_directories(o.work_dir);
+  std::vector<std::filesystem::path> files;
   int done = 0;
   for (int i : order) {
     const int j = partners[i].image;
     ++done;
+    const std::filesystem::path path = o.work_dir / (model.images[i].name + ".pts");
+    files.push_back(path);
+    if (std::filesystem::exists(path)) {
+      ++s.pairs;  // computed by an earlier, interrupted run
+      continue;
+    }
     const Image& a = model.images[i];
     const Image& b = model.images[j];
     const Camera& ca = model.cameras[a.camera];
@@ -124,6 +264,7 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
     cv::Mat img_a = load_image(i), img_b = load_image(j);
     if (img_a.empty() || img_b.empty()) {
       ++s.pairs_failed;
+      files.pop_back();
       continue;
     }
     if (o.image_scale != 1.0) {
@@ -181,6 +322,7 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
     }
     if (disparities.size() < 20) {
       ++s.pairs_failed;
+      files.pop_back();
       continue;
     }
     std::sort(disparities.begin(), disparities.end());
@@ -198,6 +340,7 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
     sgbm->compute(ga, gb, disp);
     ++s.pairs;
     const Eigen::Matrix3d world_from_rect = rect_from_world.transpose();
+    DepthPoints points;
     for (int v = 0; v < height; ++v) {
       const std::int16_t* d = disp.ptr<std::int16_t>(v);
       const float* valid = mxa.ptr<float>(v);
@@ -207,35 +350,16 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
         const double dd = d[u] / 16.0;
         const double z = f * baseline / dd;
         const Eigen::Vector3d x = ci + world_from_rect * (z * Eigen::Vector3d((u - cx) / f, (v - cy) / f, 1.0));
-        Voxel& vx = voxels[VoxelKey(x, res)];
-        for (int k = 0; k < 3; ++k) vx.sum[k] += x[k];
-        vx.rgb[0] += colour[u][2];
-        vx.rgb[1] += colour[u][1];
-        vx.rgb[2] += colour[u][0];
-        ++vx.count;
-        if (vx.last_map != i) {
-          vx.last_map = i;
-          ++vx.views;
-        }
-        ++s.depth_points;
+        points.Add(x, colour[u][2], colour[u][1], colour[u][0]);
       }
     }
+    s.depth_points += static_cast<long long>(points.count());
+    points.Write(path);
     ReportProgress(progress, static_cast<double>(done) / order.size(),
                    model.images[i].name + " + " + model.images[j].name + ": " +
-                       std::to_string(voxels.size()) + " voxels");
+                       std::to_string(points.count()) + " depth points");
   }
-  DenseCloud cloud;
-  cloud.resolution_m = res;
-  for (const auto& [key, vx] : voxels) {
-    if (vx.views < o.min_views) continue;
-    cloud.positions.emplace_back(vx.sum[0] / vx.count, vx.sum[1] / vx.count, vx.sum[2] / vx.count);
-    cloud.colours.push_back({static_cast<std::uint8_t>(vx.rgb[0] / vx.count),
-                             static_cast<std::uint8_t>(vx.rgb[1] / vx.count),
-                             static_cast<std::uint8_t>(vx.rgb[2] / vx.count)});
-    cloud.views.push_back(vx.views);
-  }
-  s.fused_points = static_cast<long long>(cloud.positions.size());
-  return cloud;
+  return Fuse(files, res, o, &s);
 }
 
 }  // namespace aerotri

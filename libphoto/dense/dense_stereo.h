@@ -12,10 +12,11 @@
 //     that disparity is horizontal whatever the flight direction.
 //  3. SGBM disparities (range from the sparse points, left-right check) are
 //     turned into points in the adjustment frame (ENU).
-//  4. Points are fused in a voxel grid at the dense resolution; a voxel is
-//     kept only when at least min_views depth maps put a point in it, which
-//     removes the blunders of single pairs. Images are processed one at a
-//     time (memory is bounded by the voxel grid, not the image count).
+//  4. Each depth map's points go to a file; they are then fused tile by tile
+//     in a voxel grid at the dense resolution, and a voxel is kept only when
+//     at least min_views depth maps put a point in it, which removes the
+//     blunders of single pairs. Memory is bounded by one image pair and one
+//     tile of voxels, whatever the survey's size.
 //
 // Why pairwise SGM rather than multi-view plane sweep: on the sample survey
 // it reconstructs the terrain to a fraction of a GSD with >95 % coverage in
@@ -43,6 +44,10 @@ struct DenseOptions {
   int block_size = 5;         // SGBM matching window (px)
   double image_scale = 1.0;   // of the working-resolution images
   int num_threads = 0;
+  // Where each image's depth points are kept (<image>.pts): fusion reads them
+  // tile by tile, and an interrupted run recomputes only what is missing.
+  std::filesystem::path work_dir;
+  long long tile_voxels = 1500;  // tile side in voxels (memory ~ its square)
 };
 
 struct DenseCloud {
@@ -57,6 +62,7 @@ struct DenseSummary {
   int pairs_failed = 0;
   long long depth_points = 0;
   long long fused_points = 0;
+  int tiles = 0;
   double resolution_m = 0.0;
 };
 

@@ -181,6 +181,7 @@ bool RunDenseStage(const PipelineOptions& o) {
     return false;
   }
   const auto start = Clock::now();
+  if (o.force) fs::remove_all(o.workspace / "depth");
   json report = ReadJson(o.workspace / "report.json", "georeference");
   if (!report.value("georeferenced", false)) {
     Log(o, "warning: dense: the survey is not georeferenced; no cloud or DSM in a CRS is written");
@@ -195,6 +196,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   d.resolution_m = o.dense_resolution_m;
   d.image_scale = o.dense_image_scale;
   d.num_threads = o.num_threads;
+  d.work_dir = o.workspace / "depth";
   DenseSummary summary;
   const DenseCloud cloud = ComputeDenseCloud(
       model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
@@ -215,6 +217,7 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"points", out.xyz.size()},
                       {"resolution_m", cloud.resolution_m},
                       {"min_views", d.min_views},
+                      {"tiles", summary.tiles},
                       {"dsm", dsm_info}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
   Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud.resolution_m) +

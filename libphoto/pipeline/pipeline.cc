@@ -524,6 +524,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["ingest_warnings"] = ingest.raw.value("warnings", json::array());
 
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
+  fs::remove_all(o.workspace / "depth");  // depth maps of an earlier model are stale
   // The working-resolution model in ENU feeds dense matching.
   WriteColmapText(model, o.workspace / "georeferenced");
   RecordTiming(o, "georeference", std::chrono::duration<double>(Clock::now() - start).count());
