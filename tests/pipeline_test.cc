@@ -183,6 +183,37 @@ TEST_F(Pipeline, InterruptedDenseStageResumesToTheSameCloud) {
   EXPECT_EQ(after["points"], before["points"]);
 }
 
+TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
+  PipelineOptions o = Options("ws_gcp");
+  o.gcp = dir_->path() / "survey" / "gcp_list.txt";
+  o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
+  RunPipeline(o);
+  const auto before = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  // aerotri dem: another resolution from cloud.las.
+  o.dsm_resolution_m = 0.5;
+  RebuildDsm(o, o.workspace / "dsm_0.5m.tif");
+  const Raster coarse = ReadRaster(o.workspace / "dsm_0.5m.tif");
+  EXPECT_DOUBLE_EQ(coarse.geotransform[1], 0.5);
+  EXPECT_NE(coarse.wkt.find("UTM zone 32N"), std::string::npos);
+  // aerotri check: the same check points give the same figures again.
+  CheckSurvey(o);
+  const auto after = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  EXPECT_EQ(after["check_points"]["count"], before["check_points"]["count"]);
+  EXPECT_NEAR(after["check_points"]["rmse_3d_m"].get<double>(), before["check_points"]["rmse_3d_m"].get<double>(),
+              1e-6);
+  EXPECT_TRUE(after["dsm"]["check_points"].contains("rmse_z_m"));
+  // A check-point file naming an image the survey does not have is reported, not fatal.
+  std::ofstream(o.workspace / "odd_checks.txt") << "EPSG:32632\n384900 5150700 500 10 10 NOT_THERE.JPG X1\n";
+  o.checkpoints = o.workspace / "odd_checks.txt";
+  CheckSurvey(o);
+  const auto odd = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  EXPECT_EQ(odd["check_points"]["count"], 0);
+  EXPECT_NE(odd["warnings"].dump().find("NOT_THERE.JPG"), std::string::npos);
+  // Leave the workspace as the other tests expect it.
+  o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
+  CheckSurvey(o);
+}
+
 TEST_F(Pipeline, CompoundCrsGivesAGeoidHeightDsm) {
   // Reuse the tie points of a finished run; georeference again in EPSG:32632+5773.
   PipelineOptions base = Options("ws_gps");
