@@ -208,7 +208,7 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
   CheckSurvey(o);
   const auto odd = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
   EXPECT_EQ(odd["check_points"]["count"], 0);
-  EXPECT_NE(odd["warnings"].dump().find("NOT_THERE.JPG"), std::string::npos);
+  EXPECT_NE(odd["check_warnings"].dump().find("NOT_THERE.JPG"), std::string::npos);
   // Leave the workspace as the other tests expect it.
   o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
   CheckSurvey(o);

@@ -279,7 +279,7 @@ void CheckSurvey(const PipelineOptions& o) {
   const Crs file_crs = Crs::FromString(checks.crs);
   std::vector<GroundPointResult> results;
   std::vector<Eigen::Vector3d> residuals;
-  json warnings = report.value("warnings", json::array());
+  json warnings = json::array();  // of this check only: replaced on every check
   for (const GroundPoint& point : checks.points) {
     std::vector<View> views;
     for (const GcpMeasurement& m : point.measurements) {
@@ -308,7 +308,7 @@ void CheckSurvey(const PipelineOptions& o) {
   const json fresh = GeoreferenceReportJson(partial, model);
   report["check_points"] = fresh["check_points"];
   report["asprs"] = fresh["asprs"];
-  report["warnings"] = warnings;
+  report["check_warnings"] = warnings;
   report["check_points"]["file"] = fs::absolute(o.checkpoints).string();
   WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
   PipelineOptions again = o;

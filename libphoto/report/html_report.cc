@@ -337,7 +337,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   }
   h << "</table>";
   std::vector<std::string> warnings;
-  for (const char* key : {"ingest_warnings", "warnings"}) {
+  for (const char* key : {"ingest_warnings", "warnings", "check_warnings"}) {
     for (const auto& w : r.value(key, json::array())) warnings.push_back(w.get<std::string>());
   }
   if (!warnings.empty()) {
