@@ -3,6 +3,9 @@
 #include <cstdio>
 #include <memory>
 
+#include <nlohmann/json.hpp>
+
+#include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
 #include "libphoto/pipeline/pipeline.h"
 #include "tools/commands.h"
@@ -169,8 +172,21 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
     CheckSurvey(o);
   }
   if (s == "run" || s == "georeference" || s == "report" || s == "check") {
-    const auto report = std::filesystem::path(a.output) / "report.json";
-    *ctx.out << "report: " << report.string() << "\n";
+    // One data line on stdout, for scripts: the figures a surveyor looks at first.
+    const auto path = std::filesystem::path(a.output) / "report.json";
+    const nlohmann::json r = nlohmann::json::parse(ReadTextFile(path));
+    const auto& images = r.value("images", nlohmann::json::object());
+    const auto& checks = r.value("check_points", nlohmann::json::object());
+    char line[512];
+    std::snprintf(line, sizeof(line),
+                  "report=%s registered=%d/%d rms_px=%.3f crs=%s check_count=%d check_rmse_h_m=%.4f "
+                  "check_rmse_v_m=%.4f check_rmse_3d_m=%.4f\n",
+                  path.string().c_str(), images.value("registered", 0), images.value("total", 0),
+                  r.value("adjustment", nlohmann::json::object()).value("final_rms_px", 0.0),
+                  r.contains("crs") && r["crs"].is_string() ? r["crs"].get<std::string>().c_str() : "none",
+                  checks.value("count", 0), checks.value("rmse_h_m", 0.0), checks.value("rmse_z_m", 0.0),
+                  checks.value("rmse_3d_m", 0.0));
+    *ctx.out << line << std::flush;
   }
   return 0;
 }
