@@ -88,16 +88,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   options.gcp_sigma_v_m = args.gcp_sigma_v_m;
   options.progress = ctx.Progress("adjust");
   BundleOptions& bundle = options.bundle;
-  const auto loss = ParseLossType(args.loss);
-  const auto refine = ParseIntrinsicsRefinement(args.refine, &bundle.refine_params);
-  if (!loss) throw InvalidArgument("--loss: unknown loss '" + args.loss + "'");
-  if (!refine) {
-    throw InvalidArgument("--refine: expected none, focal, focal,pp, all or a list of f, cx, "
-                          "cy, k1, k2, k3, p1, p2; got '" + args.refine + "'");
-  }
-  bundle.loss = *loss;
-  bundle.loss_scale_px = args.loss_scale_px;
-  bundle.refine_intrinsics = *refine;
+  ApplyAdjustmentOptions(args.loss, args.loss_scale_px, args.refine, &bundle);
   bundle.outlier_threshold_px = args.outlier_threshold_px;
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;

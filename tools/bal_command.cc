@@ -58,21 +58,12 @@ void RegisterBalCommand(CLI::App& app, CommandAction* run) {
 
 int RunBal(const BalArgs& args, ToolContext& ctx) {
   BundleOptions options;
-  const auto loss = ParseLossType(args.loss);
+  ApplyAdjustmentOptions(args.loss, args.loss_scale_px, args.refine, &options);
   const auto solver = ParseLinearSolver(args.solver);
-  const auto refine = ParseIntrinsicsRefinement(args.refine, &options.refine_params);
-  if (!loss) throw InvalidArgument("--loss: unknown loss '" + args.loss + "'");
   if (!solver) throw InvalidArgument("--solver: unknown solver '" + args.solver + "'");
-  if (!refine) {
-    throw InvalidArgument("--refine: expected none, focal, focal,pp, all or a list of f, cx, "
-                          "cy, k1, k2, k3, p1, p2; got '" + args.refine + "'");
-  }
-  options.loss = *loss;
-  options.loss_scale_px = args.loss_scale_px;
   options.linear_solver = *solver;
   options.num_threads = args.threads;
   options.max_iterations = args.max_iterations;
-  options.refine_intrinsics = *refine;
   options.outlier_threshold_px = args.outlier_threshold_px;
   options.function_tolerance = args.function_tolerance;
   options.keep_solver_report = args.solver_report;

@@ -11,12 +11,18 @@
 #include <functional>
 #include <string>
 
+#include "libphoto/adjust/bundle_adjuster.h"
 #include "tools/tool_context.h"
 
 namespace aerotri {
 
 // Sets *run to the chosen command's action once parsing succeeds.
 using CommandAction = std::function<int(ToolContext&)>;
+
+// --loss NAME --loss-scale PX --refine WHAT, shared by the commands that
+// adjust; throws InvalidArgument naming the option and the allowed values.
+void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,
+                            BundleOptions* options);
 
 struct BalArgs {
   std::string problem;

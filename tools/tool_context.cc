@@ -14,6 +14,8 @@
 #include <opencv2/core/version.hpp>
 #include <sstream>
 
+#include "libphoto/base/error.h"
+#include "tools/commands.h"
 #include "tools/version.h"
 
 namespace aerotri {
@@ -51,6 +53,20 @@ std::string VersionString() {
       << NLOHMANN_JSON_VERSION_MAJOR << "." << NLOHMANN_JSON_VERSION_MINOR << "."
       << NLOHMANN_JSON_VERSION_PATCH << ", bzip2 " << BZ2_bzlibVersion() << ")";
   return out.str();
+}
+
+void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,
+                            BundleOptions* options) {
+  const auto parsed_loss = ParseLossType(loss);
+  if (!parsed_loss) throw InvalidArgument("--loss: unknown loss '" + loss + "'");
+  const auto parsed_refine = ParseIntrinsicsRefinement(refine, &options->refine_params);
+  if (!parsed_refine) {
+    throw InvalidArgument("--refine: expected none, focal, focal,pp, all or a list of f, cx, cy, k1, k2, k3, "
+                          "p1, p2; got '" + refine + "'");
+  }
+  options->loss = *parsed_loss;
+  options->loss_scale_px = loss_scale_px;
+  options->refine_intrinsics = *parsed_refine;
 }
 
 }  // namespace aerotri

@@ -60,4 +60,22 @@ int SparseModel::NumRegisteredImages() const {
   return n;
 }
 
+void SparseModel::KeepPoints(const std::vector<char>& keep) {
+  std::vector<int> remap(points.size(), -1);
+  std::vector<Point> kept;
+  for (size_t p = 0; p < points.size(); ++p) {
+    if (!keep[p]) continue;
+    remap[p] = static_cast<int>(kept.size());
+    kept.push_back(points[p]);
+  }
+  std::vector<Observation> obs;
+  for (Observation o : observations) {
+    if (remap[o.point] < 0) continue;
+    o.point = remap[o.point];
+    obs.push_back(o);
+  }
+  points.swap(kept);
+  observations.swap(obs);
+}
+
 }  // namespace aerotri

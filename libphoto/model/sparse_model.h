@@ -97,6 +97,8 @@ struct SparseModel {
   std::vector<int> ObservationsPerPoint() const;
   std::vector<int> ObservationsPerImage() const;
   int NumRegisteredImages() const;
+  // Keeps the points with keep[p] true (and their observations), in order.
+  void KeepPoints(const std::vector<char>& keep);
 };
 
 }  // namespace aerotri

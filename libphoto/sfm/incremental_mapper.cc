@@ -618,25 +618,13 @@ class Mapper {
     }
   }
 
-  // Removes points without observations and renumbers.
+  // Removes points without two observations and renumbers.
   void Compact() {
     const std::vector<int> per_point = model_.ObservationsPerPoint();
-    std::vector<int> remap(model_.points.size(), -1);
-    std::vector<Point> points;
-    for (size_t p = 0; p < model_.points.size(); ++p) {
-      if (per_point[p] < 2) continue;
-      remap[p] = static_cast<int>(points.size());
-      points.push_back(model_.points[p]);
-      points.back().id = static_cast<int>(points.size());
-    }
-    std::vector<Observation> obs;
-    for (Observation o : model_.observations) {
-      if (remap[o.point] < 0) continue;
-      o.point = remap[o.point];
-      obs.push_back(o);
-    }
-    model_.points.swap(points);
-    model_.observations.swap(obs);
+    std::vector<char> keep(model_.points.size());
+    for (size_t p = 0; p < keep.size(); ++p) keep[p] = per_point[p] >= 2;
+    model_.KeepPoints(keep);
+    for (size_t p = 0; p < model_.points.size(); ++p) model_.points[p].id = static_cast<int>(p) + 1;
   }
 
   const std::vector<ImageFeatures>& features_;

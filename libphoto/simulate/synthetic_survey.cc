@@ -143,21 +143,9 @@ SyntheticSurvey MakeSyntheticSurvey(const SyntheticSurveyOptions& o) {
   // Drop tie points seen fewer than twice (ground points keep their views).
   {
     const auto per_point = truth.ObservationsPerPoint();
-    std::vector<int> remap(truth.points.size(), -1);
-    std::vector<Point> kept;
-    for (size_t p = 0; p < truth.points.size(); ++p) {
-      if (truth.points[p].role == PointRole::kTie && per_point[p] < 2) continue;
-      remap[p] = static_cast<int>(kept.size());
-      kept.push_back(truth.points[p]);
-    }
-    std::vector<Observation> obs;
-    for (Observation o2 : truth.observations) {
-      if (remap[o2.point] < 0) continue;
-      o2.point = remap[o2.point];
-      obs.push_back(o2);
-    }
-    truth.points.swap(kept);
-    truth.observations.swap(obs);
+    std::vector<char> keep(truth.points.size());
+    for (size_t p = 0; p < keep.size(); ++p) keep[p] = truth.points[p].role != PointRole::kTie || per_point[p] >= 2;
+    truth.KeepPoints(keep);
   }
 
   survey.observed = truth;
