@@ -8,6 +8,8 @@
 #include <cmath>
 #include <memory>
 
+#include <opencv2/imgproc.hpp>
+
 #include "libphoto/base/error.h"
 
 namespace aerotri {
@@ -66,7 +68,24 @@ Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& 
     if (GDALFillNodata(band, nullptr, max_px, 0, 0, nullptr, nullptr, nullptr) != CE_None) {
       throw IoError("DSM", std::string("GDALFillNodata failed: ") + CPLGetLastErrorMsg());
     }
-    band->RasterIO(GF_Read, 0, 0, r.width, r.height, r.values.data(), r.width, r.height, GDT_Float32, 0, 0);
+    std::vector<float> filled_values(r.values.size());
+    band->RasterIO(GF_Read, 0, 0, r.width, r.height, filled_values.data(), r.width, r.height, GDT_Float32, 0, 0);
+    // Fill holes, do not grow the edges: keep a filled cell only inside the
+    // morphological closing of the cells with data (dilate, then erode, by
+    // the fill distance). Without this every isolated point becomes a disc.
+    const int radius = std::max(1, static_cast<int>(std::lround(max_px)));
+    cv::Mat mask(r.height, r.width, CV_8U);
+    for (int y = 0; y < r.height; ++y) {
+      for (int x = 0; x < r.width; ++x) mask.at<std::uint8_t>(y, x) = r.at(x, y) != static_cast<float>(o.nodata) ? 255 : 0;
+    }
+    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1));
+    cv::Mat closed;
+    cv::morphologyEx(mask, closed, cv::MORPH_CLOSE, kernel, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, 0);
+    for (int y = 0; y < r.height; ++y) {
+      for (int x = 0; x < r.width; ++x) {
+        if (closed.at<std::uint8_t>(y, x)) r.at(x, y) = filled_values[static_cast<size_t>(y) * r.width + x];
+      }
+    }
     long long now = 0;
     for (float v : r.values) now += v != static_cast<float>(o.nodata);
     filled = now - with_data;

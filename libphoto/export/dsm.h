@@ -4,7 +4,9 @@
 // Digital surface model from a point cloud in a projected output CRS: each
 // cell takes the median height of the points that fall in it (robust to the
 // odd stray point), holes are filled up to a distance with GDAL's inverse-
-// distance FillNodata, and the raster is written through GDAL (GeoTIFF with
+// distance FillNodata inside the data's outline only (the morphological
+// closing of the cells with data: edges and lone points do not grow into
+// discs), and the raster is written through GDAL (GeoTIFF with
 // overviews, or a Cloud-Optimised GeoTIFF) with CRS, geotransform and nodata.
 
 #include <Eigen/Core>
