@@ -114,6 +114,7 @@ struct RunArgs {
   double gcp_sigma_v_m = 0.03;
   std::string crs;
   double dense_resolution_m = 0.0;
+  int dense_min_views = 2;
   double dsm_resolution_m = 0.0;
   double dsm_fill_m = 2.0;
   bool cog = false;

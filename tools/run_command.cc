@@ -55,6 +55,10 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
   cmd->add_option("--dense-resolution", a->dense_resolution_m,
                   "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--dense-min-views", a->dense_min_views,
+                  "Depth maps (two per photo) that must agree on a dense point: more is cleaner, fewer covers "
+                  "more of hard surfaces such as tree canopy")
+      ->check(CLI::Range(1, 50))->capture_default_str();
   AddDsmOptions(cmd, a);
 }
 
@@ -125,6 +129,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.gcp_pixel_origin = a.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
   o.georef.output_crs = a.crs;
   o.dense_resolution_m = a.dense_resolution_m;
+  o.dense_min_views = a.dense_min_views;
   o.dsm_resolution_m = a.dsm_resolution_m;
   o.dsm_fill_m = a.dsm_fill_m;
   o.cog = a.cog;

@@ -27,8 +27,8 @@ struct Partner {
   double angle_deg = 0.0;
 };
 
-// For each registered image, the neighbour to match it with.
-std::vector<Partner> ChoosePartners(const SparseModel& model, const DenseOptions& o) {
+// For each registered image, the neighbours to match it with, best first.
+std::vector<std::vector<Partner>> ChoosePartners(const SparseModel& model, const DenseOptions& o) {
   const size_t n = model.images.size();
   std::vector<std::vector<int>> images_of_point(model.points.size());
   for (const Observation& obs : model.observations) {
@@ -48,8 +48,7 @@ std::vector<Partner> ChoosePartners(const SparseModel& model, const DenseOptions
       }
     }
   }
-  std::vector<Partner> best(n);
-  std::vector<double> best_score(n, 0.0);
+  std::vector<std::vector<std::pair<double, Partner>>> scored(n);
   for (auto& [key, v] : angles) {
     if (v.size() < 30) continue;
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
@@ -60,10 +59,14 @@ std::vector<Partner> ChoosePartners(const SparseModel& model, const DenseOptions
     for (int k = 0; k < 2; ++k) {
       const int i = k == 0 ? key.first : key.second;
       const int j = k == 0 ? key.second : key.first;
-      if (score > best_score[i]) {
-        best_score[i] = score;
-        best[i] = {j, static_cast<int>(v.size()), median};
-      }
+      scored[i].push_back({score, {j, static_cast<int>(v.size()), median}});
+    }
+  }
+  std::vector<std::vector<Partner>> best(n);
+  for (size_t i = 0; i < n; ++i) {
+    std::sort(scored[i].begin(), scored[i].end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (size_t k = 0; k < scored[i].size() && static_cast<int>(k) < o.partners_per_image; ++k) {
+      best[i].push_back(scored[i][k].second);
     }
   }
   return best;
@@ -372,21 +375,24 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
   s.resolution_m = res;
   if (o.work_dir.empty()) throw InvalidArgument("dense matching needs a folder for its depth points");
   std::filesystem::create_directories(o.work_dir);
-  const std::vector<Partner> partners = ChoosePartners(model, o);
-  std::vector<int> order;
+  const std::vector<std::vector<Partner>> partners = ChoosePartners(model, o);
+  std::vector<std::pair<int, int>> order;
   for (size_t i = 0; i < model.images.size(); ++i) {
-    if (model.images[i].registered && partners[i].image >= 0) order.push_back(static_cast<int>(i));
+    if (!model.images[i].registered) continue;
+    for (const Partner& p : partners[i]) order.push_back({static_cast<int>(i), p.image});
   }
   // Pairs on all cores (OpenCV's SGBM runs on one); each writes its own file.
   std::vector<std::filesystem::path> paths;
-  for (int i : order) paths.push_back(o.work_dir / (model.images[i].name + ".pts"));
+  for (const auto& [i, j] : order) {
+    paths.push_back(o.work_dir / (model.images[i].name + "+" + model.images[j].name + ".pts"));
+  }
   std::vector<char> ok(order.size(), 0);
   std::atomic<size_t> next{0};
   std::mutex mutex;
   size_t done = 0;
   auto worker = [&] {
     for (size_t k = next++; k < order.size(); k = next++) {
-      const int i = order[k], j = partners[i].image;
+      const auto [i, j] = order[k];
       long long n = 0;
       bool computed = false;
       if (std::filesystem::exists(paths[k])) {

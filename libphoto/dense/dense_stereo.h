@@ -5,8 +5,9 @@
 // matching (Hirschmüller 2008, OpenCV StereoSGBM), fused into one coloured
 // cloud with a multi-view consistency test.
 //
-//  1. Each registered image is paired with the neighbour that shares the most
-//     sparse points at a triangulation angle between 3 and 25 degrees.
+//  1. Each registered image is paired with the neighbours (two by default)
+//     that share the most sparse points at a triangulation angle between 3
+//     and 25 degrees.
 //  2. The pair is rectified by Fusiello's construction (common rotation with
 //     x along the baseline), through the exact Brown model of each camera, so
 //     that disparity is horizontal whatever the flight direction.
@@ -39,6 +40,7 @@ namespace aerotri {
 struct DenseOptions {
   double resolution_m = 0.0;  // voxel size; 0: the median GSD of the images
   int min_views = 2;          // depth maps that must agree on a voxel
+  int partners_per_image = 2; // depth maps per image (its best-matching neighbours)
   double min_angle_deg = 3.0;
   double max_angle_deg = 25.0;
   int block_size = 5;         // SGBM matching window (px)

@@ -195,6 +195,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   DenseOptions d;
   d.resolution_m = o.dense_resolution_m;
   d.image_scale = o.dense_image_scale;
+  d.min_views = o.dense_min_views;
   d.num_threads = o.num_threads;
   d.work_dir = o.workspace / "depth";
   DenseSummary summary;

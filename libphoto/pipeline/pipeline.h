@@ -57,6 +57,7 @@ struct PipelineOptions {
   // dense
   double dense_resolution_m = 0.0;  // 0: the median GSD at working resolution
   double dense_image_scale = 1.0;   // of the working images for matching
+  int dense_min_views = 2;          // depth maps that must agree on a point
   double dsm_resolution_m = 0.0;    // 0: twice the dense resolution
   double dsm_fill_m = 2.0;          // holes filled up to this distance
   bool cog = false;                 // Cloud-Optimised GeoTIFF
