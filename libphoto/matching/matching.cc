@@ -7,7 +7,9 @@
 #include <map>
 #include <mutex>
 #include <opencv2/calib3d.hpp>
+#include <memory>
 #include <opencv2/flann.hpp>
+#include <opencv2/flann/random.h>
 #include <set>
 #include <thread>
 
@@ -114,7 +116,7 @@ std::vector<PairMatches> MatchPairs(const std::vector<ImageFeatures>& features,
   for (size_t k = 0; k < features.size(); ++k) float_desc[k] = features[k].FloatDescriptors();
 
   std::vector<PairMatches> verified;
-  std::mutex mutex;
+  std::mutex mutex, flann_build;
   std::atomic<size_t> next{0};
   std::atomic<size_t> done_pairs{0};
   const size_t total = pairs.size();
@@ -125,7 +127,16 @@ std::vector<PairMatches> MatchPairs(const std::vector<ImageFeatures>& features,
         done_pairs += tasks[t].second.size();
         continue;
       }
-      cv::flann::Index index(float_desc[j], cv::flann::KDTreeIndexParams(4));
+      // FLANN's randomised trees draw from the C library's rand(): build each
+      // under a lock with a seed of its own, so matches do not depend on
+      // thread scheduling and a re-run gives the same survey.
+      std::unique_ptr<cv::flann::Index> built;
+      {
+        std::lock_guard<std::mutex> lock(flann_build);
+        cvflann::seed_random(1000u + static_cast<unsigned>(j));
+        built = std::make_unique<cv::flann::Index>(float_desc[j], cv::flann::KDTreeIndexParams(4));
+      }
+      cv::flann::Index& index = *built;
       for (int i : tasks[t].second) {
         PairMatches m = MatchOne(features[i], float_desc[i], features[j], index, i, j, options);
         const size_t done = ++done_pairs;
