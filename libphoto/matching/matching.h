@@ -34,7 +34,7 @@ struct MatchOptions {
   double max_epipolar_px = 3.0;  // working resolution
   int gps_neighbours = 12;
   int exhaustive_up_to = 12;     // images
-  int flann_checks = 64;
+  int flann_checks = 128;
   int num_threads = 0;
 };
 

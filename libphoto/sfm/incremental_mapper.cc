@@ -138,10 +138,13 @@ class Mapper {
   bool Initialise(std::string* description) {
     std::vector<const PairMatches*> order;
     for (const PairMatches& m : matches_) order.push_back(&m);
-    // Many inliers, and not explained by a homography alone (parallax).
+    // Many inliers first. Nadir photos of fairly flat ground are mostly
+    // explained by a homography, so only near-pure homographies (no parallax)
+    // are set back; favouring low homography ratios picked weak side-overlap
+    // pairs whose two-view model then bent the calibration.
     auto score = [](const PairMatches* m) {
       const double h = static_cast<double>(m->homography_inliers) / std::max<size_t>(1, m->inliers.size());
-      return m->inliers.size() * (1.2 - std::min(1.0, h));
+      return static_cast<double>(m->inliers.size()) * (h > 0.97 ? 0.3 : 1.0);
     };
     std::sort(order.begin(), order.end(), [&](auto* a, auto* b) { return score(a) > score(b); });
     for (int k = 0; k < std::min<int>(options_.init_candidates, static_cast<int>(order.size())); ++k) {
@@ -195,14 +198,14 @@ class Mapper {
     }
     std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
     const double median = angles.empty() ? 0.0 : angles[angles.size() / 2];
-    if (angles.size() < 30 || median < options_.init_min_median_angle_deg) {
+    if (angles.size() < 100 || median < options_.init_min_median_angle_deg) {
       Reset(saved, m.i, m.j);
       return false;
     }
     status_[m.i] = {true, "", static_cast<int>(a.size()), good};
     status_[m.j] = {true, "", static_cast<int>(a.size()), good};
     GlobalAdjust(false);
-    if (NumLivePoints() < 30) {
+    if (NumLivePoints() < 100) {
       Reset(saved, m.i, m.j);
       return false;
     }
