@@ -2,6 +2,7 @@
 // aerotri adjust: georeference an existing reconstruction (COLMAP text model)
 // with GPS and ground control, self-calibrating, and report accuracy on check
 // points.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -134,14 +135,17 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   ctx.Info(report.bundle.BriefReport());
   ctx.Info("wrote " + (output / "model").string() + " and " + (output / "report.json").string());
 
+  // An RMSE over no points is not a figure: "nan", never a reassuring 0.0000.
+  const auto rmse = [](int count, double value) { return count > 0 ? value : std::nan(""); };
   char line[512];
   std::snprintf(line, sizeof(line),
                 "crs=%s final_rms_px=%.4f control_count=%d control_rmse_3d_m=%.4f "
                 "check_count=%d check_rmse_h_m=%.4f check_rmse_v_m=%.4f check_rmse_3d_m=%.4f\n",
                 report.crs.c_str(), report.bundle.final_rms_px, report.control_stats.count,
-                report.control_stats.rmse_3d_m, report.check_stats.count,
-                report.check_stats.rmse_h_m, report.check_stats.rmse_z_m,
-                report.check_stats.rmse_3d_m);
+                rmse(report.control_stats.count, report.control_stats.rmse_3d_m), report.check_stats.count,
+                rmse(report.check_stats.count, report.check_stats.rmse_h_m),
+                rmse(report.check_stats.count, report.check_stats.rmse_z_m),
+                rmse(report.check_stats.count, report.check_stats.rmse_3d_m));
   *ctx.out << line << std::flush;
   return 0;
 }

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // aerotri run IMAGES --output DIR, and the stages as subcommands.
+#include <cmath>
 #include <cstdio>
 #include <memory>
 
@@ -177,6 +178,10 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
     CheckSurvey(o);
   }
   if (s == "run" || s == "georeference" || s == "report" || s == "check") {
+    // An RMSE over no check points is not a figure: "nan", never a reassuring 0.0000.
+    const auto CheckRmse = [](const nlohmann::json& checks, const char* key) {
+      return checks.value("count", 0) > 0 ? checks.value(key, std::nan("")) : std::nan("");
+    };
     // One data line on stdout, for scripts: the figures a surveyor looks at first.
     const auto path = std::filesystem::path(a.output) / "report.json";
     const nlohmann::json r = nlohmann::json::parse(ReadTextFile(path));
@@ -189,8 +194,8 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
                   path.string().c_str(), images.value("registered", 0), images.value("total", 0),
                   r.value("adjustment", nlohmann::json::object()).value("final_rms_px", 0.0),
                   r.contains("crs") && r["crs"].is_string() ? r["crs"].get<std::string>().c_str() : "none",
-                  checks.value("count", 0), checks.value("rmse_h_m", 0.0), checks.value("rmse_z_m", 0.0),
-                  checks.value("rmse_3d_m", 0.0));
+                  checks.value("count", 0), CheckRmse(checks, "rmse_h_m"), CheckRmse(checks, "rmse_z_m"),
+                  CheckRmse(checks, "rmse_3d_m"));
     *ctx.out << line << std::flush;
   }
   return 0;

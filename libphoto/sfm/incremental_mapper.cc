@@ -277,6 +277,13 @@ class Mapper {
     return out;
   }
 
+  // What SolvePnP asks of n correspondences, for the registration report.
+  std::string PnpNeeds(size_t n, double min_inlier_ratio) const {
+    const int needed = std::max(options_.min_pnp_inliers,
+                                static_cast<int>(std::ceil(min_inlier_ratio * static_cast<double>(n))));
+    return " (at least " + std::to_string(needed) + " needed)";
+  }
+
   // PnP RANSAC (P3P) on 2D-3D correspondences given as undistorted rays,
   // refined by Levenberg-Marquardt on the inliers. std::nullopt when fewer
   // than min_pnp_inliers, or less than min_inlier_ratio of them, agree.
@@ -334,7 +341,7 @@ class Mapper {
     st.inliers = static_cast<int>(inliers.size());
     if (!pose) {
       st.why_not = "PnP found " + std::to_string(inliers.size()) + " inliers of " +
-                   std::to_string(world.size()) + " 2D-3D correspondences";
+                   std::to_string(world.size()) + " 2D-3D correspondences" + PnpNeeds(world.size(), 0.2);
       ++failures_[image];
       return false;
     }
@@ -550,7 +557,7 @@ class Mapper {
       const auto solved = SolvePnP(image, world, rays, 0.3, &inliers);
       if (!solved) {
         st.why_not = "guided matching from GPS: PnP found " + std::to_string(inliers.size()) +
-                     " inliers of " + std::to_string(world.size());
+                     " inliers of " + std::to_string(world.size()) + PnpNeeds(world.size(), 0.3);
         return false;
       }
       pose = *solved;
