@@ -15,6 +15,7 @@
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/parallel.h"
 
 namespace aerotri {
 namespace {
@@ -28,6 +29,18 @@ struct Partner {
 };
 
 // For each registered image, the neighbours to match it with, best first.
+// Rectified stereo needs the baseline across both views, as in a survey
+// strip: each optical axis at least 60 degrees from it. A pair that moved
+// along its view (a ground-level walk, a strip's consecutive oblique frames)
+// has its epipole in the image and rectifies into a useless sliver.
+bool SideBySide(const Image& a, const Image& b) {
+  const Eigen::Vector3d base = (b.pose.centre_in_world - a.pose.centre_in_world).normalized();
+  const Eigen::Vector3d za = a.pose.cam_from_world.conjugate() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d zb = b.pose.cam_from_world.conjugate() * Eigen::Vector3d::UnitZ();
+  const double limit = std::cos(60.0 * kDeg);
+  return std::abs(base.dot(za)) < limit && std::abs(base.dot(zb)) < limit;
+}
+
 std::vector<std::vector<Partner>> ChoosePartners(const SparseModel& model, const DenseOptions& o) {
   const size_t n = model.images.size();
   std::vector<std::vector<int>> images_of_point(model.points.size());
@@ -54,6 +67,7 @@ std::vector<std::vector<Partner>> ChoosePartners(const SparseModel& model, const
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     const double median = v[v.size() / 2];
     if (median < o.min_angle_deg || median > o.max_angle_deg) continue;
+    if (!SideBySide(model.images[key.first], model.images[key.second])) continue;
     const double weight = (median >= 5.0 && median <= 15.0) ? 1.0 : 0.5;
     const double score = weight * static_cast<double>(v.size());
     for (int k = 0; k < 2; ++k) {
@@ -182,67 +196,57 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
     std::uint8_t rgb[3];
   };
   std::vector<DenseCloud> parts(tiles.size());  // kept in tile order: the same cloud every run
-  std::atomic<size_t> next{0};
-  auto worker = [&] {
-    for (size_t t = next++; t < tiles.size(); t = next++) {
-      const auto [tx, ty] = tiles[t];
-      const double bx0 = tx * tile, bx1 = (tx + 1) * tile, by0 = ty * tile, by1 = (ty + 1) * tile;
-      std::vector<Record> records;
-      for (size_t f = 0; f < files.size(); ++f) {
-        if (hi[f].x() < bx0 || lo[f].x() >= bx1 || hi[f].y() < by0 || lo[f].y() >= by1) continue;
-        const DepthPoints d = DepthPoints::Read(files[f], true);
-        for (size_t k = 0; k < d.count(); ++k) {
-          Record r;
-          const Eigen::Vector3d x = d.Point(k, r.rgb);
-          // The tile owns the voxels whose index lies in it: no seams.
-          const long long ix = static_cast<long long>(std::floor(x.x() / res));
-          const long long iy = static_cast<long long>(std::floor(x.y() / res));
-          if (ix < tx * tile_voxels || ix >= (tx + 1) * tile_voxels || iy < ty * tile_voxels ||
-              iy >= (ty + 1) * tile_voxels) {
-            continue;
-          }
-          r.key = VoxelKey(x, res);
-          r.x = static_cast<float>(x.x());
-          r.y = static_cast<float>(x.y());
-          r.z = static_cast<float>(x.z());
-          r.file = static_cast<std::uint16_t>(f);
-          records.push_back(r);
+  ParallelFor(tiles.size(), ThreadCount(o.num_threads), [&](size_t t) {
+    const auto [tx, ty] = tiles[t];
+    const double bx0 = tx * tile, bx1 = (tx + 1) * tile, by0 = ty * tile, by1 = (ty + 1) * tile;
+    std::vector<Record> records;
+    for (size_t f = 0; f < files.size(); ++f) {
+      if (hi[f].x() < bx0 || lo[f].x() >= bx1 || hi[f].y() < by0 || lo[f].y() >= by1) continue;
+      const DepthPoints d = DepthPoints::Read(files[f], true);
+      for (size_t k = 0; k < d.count(); ++k) {
+        Record r;
+        const Eigen::Vector3d x = d.Point(k, r.rgb);
+        // The tile owns the voxels whose index lies in it: no seams.
+        const long long ix = static_cast<long long>(std::floor(x.x() / res));
+        const long long iy = static_cast<long long>(std::floor(x.y() / res));
+        if (ix < tx * tile_voxels || ix >= (tx + 1) * tile_voxels || iy < ty * tile_voxels ||
+            iy >= (ty + 1) * tile_voxels) {
+          continue;
         }
-      }
-      std::sort(records.begin(), records.end(), [](const Record& a, const Record& b) {
-        return a.key != b.key ? a.key < b.key : a.file < b.file;
-      });
-      DenseCloud& part = parts[t];
-      for (size_t a = 0; a < records.size();) {
-        size_t b = a;
-        double sum[3] = {0, 0, 0};
-        std::uint32_t rgb[3] = {0, 0, 0};
-        int views = 0;
-        for (; b < records.size() && records[b].key == records[a].key; ++b) {
-          const Record& r = records[b];
-          sum[0] += r.x;
-          sum[1] += r.y;
-          sum[2] += r.z;
-          for (int c = 0; c < 3; ++c) rgb[c] += r.rgb[c];
-          if (b == a || records[b - 1].file != r.file) ++views;
-        }
-        const double n = static_cast<double>(b - a);
-        if (views >= o.min_views) {
-          part.positions.emplace_back(sum[0] / n, sum[1] / n, sum[2] / n);
-          part.colours.push_back({static_cast<std::uint8_t>(rgb[0] / n), static_cast<std::uint8_t>(rgb[1] / n),
-                                  static_cast<std::uint8_t>(rgb[2] / n)});
-          part.views.push_back(static_cast<std::uint16_t>(views));
-        }
-        a = b;
+        r.key = VoxelKey(x, res);
+        r.x = static_cast<float>(x.x());
+        r.y = static_cast<float>(x.y());
+        r.z = static_cast<float>(x.z());
+        r.file = static_cast<std::uint16_t>(f);
+        records.push_back(r);
       }
     }
-  };
-  const unsigned threads = o.num_threads > 0 ? static_cast<unsigned>(o.num_threads)
-                                             : std::max(1u, std::thread::hardware_concurrency());
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& th : pool) th.join();
+    std::sort(records.begin(), records.end(),
+              [](const Record& a, const Record& b) { return a.key != b.key ? a.key < b.key : a.file < b.file; });
+    DenseCloud& part = parts[t];
+    for (size_t a = 0; a < records.size();) {
+      size_t b = a;
+      double sum[3] = {0, 0, 0};
+      std::uint32_t rgb[3] = {0, 0, 0};
+      int views = 0;
+      for (; b < records.size() && records[b].key == records[a].key; ++b) {
+        const Record& r = records[b];
+        sum[0] += r.x;
+        sum[1] += r.y;
+        sum[2] += r.z;
+        for (int c = 0; c < 3; ++c) rgb[c] += r.rgb[c];
+        if (b == a || records[b - 1].file != r.file) ++views;
+      }
+      const double n = static_cast<double>(b - a);
+      if (views >= o.min_views) {
+        part.positions.emplace_back(sum[0] / n, sum[1] / n, sum[2] / n);
+        part.colours.push_back({static_cast<std::uint8_t>(rgb[0] / n), static_cast<std::uint8_t>(rgb[1] / n),
+                                static_cast<std::uint8_t>(rgb[2] / n)});
+        part.views.push_back(static_cast<std::uint16_t>(views));
+      }
+      a = b;
+    }
+  });
   for (const DenseCloud& part : parts) {
     if (part.positions.empty()) continue;
     ++s->tiles;
@@ -297,10 +301,15 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   rect_from_world.row(2) = zhat;
   const int width = img_a.cols, height = img_a.rows;
   const double f = 0.5 * (ca.focal_px() + cb.focal_px()) * o.image_scale;
-  const Eigen::Vector3d centre_ray = rect_from_world * za;
-  const double cx = 0.5 * (width - 1) - f * centre_ray.x() / centre_ray.z();
-  const double cy = 0.5 * (height - 1) - f * centre_ray.y() / centre_ray.z();
-  auto build_map = [&](const Image& im, const Camera& cam, cv::Mat* mx, cv::Mat* my) {
+  // Each rectified image keeps its own view centred: its own cx (rows must
+  // share cy). A converging pair then keeps its overlap in frame, and
+  // disparities shift by cxa - cxb (u_a - u_b = f B / z + cxa - cxb).
+  const Eigen::Vector3d ray_a = rect_from_world * za, ray_b = rect_from_world * zb;
+  const double cxa = 0.5 * (width - 1) - f * ray_a.x() / ray_a.z();
+  const double cxb = 0.5 * (width - 1) - f * ray_b.x() / ray_b.z();
+  const double cy = 0.5 * (height - 1) - 0.5 * f * (ray_a.y() / ray_a.z() + ray_b.y() / ray_b.z());
+  const double offset = cxa - cxb;
+  auto build_map = [&](const Image& im, const Camera& cam, double cx, cv::Mat* mx, cv::Mat* my) {
     mx->create(height, width, CV_32F);
     my->create(height, width, CV_32F);
     const Eigen::Matrix3d cam_from_rect =
@@ -321,8 +330,8 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
     }
   };
   cv::Mat mxa, mya, mxb, myb, ra, rb;
-  build_map(a, ca, &mxa, &mya);
-  build_map(b, cb, &mxb, &myb);
+  build_map(a, ca, cxa, &mxa, &mya);
+  build_map(b, cb, cxb, &mxb, &myb);
   cv::remap(img_a, ra, mxa, mya, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
   cv::remap(img_b, rb, mxb, myb, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
   // Disparity range from the sparse points seen by both.
@@ -336,9 +345,15 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   std::sort(disparities.begin(), disparities.end());
   const double dlo = disparities[disparities.size() / 50];
   const double dhi = disparities[disparities.size() - 1 - disparities.size() / 50];
-  const int min_disp = std::max(0, static_cast<int>(std::floor(dlo * 0.85)) - 8);
-  int num_disp = static_cast<int>(std::ceil(dhi * 1.15)) + 8 - min_disp;
+  const int min_disp = static_cast<int>(std::floor(dlo * 0.85 + offset)) - 8;
+  int num_disp = static_cast<int>(std::ceil(dhi * 1.15 + offset)) + 8 - min_disp;
   num_disp = std::clamp(((num_disp + 15) / 16) * 16, 16, 1024);
+  // SGBM matches the columns [max(0, min+num), width + min(0, min)) of image
+  // a; a pair whose search range leaves too few of them (a close-range,
+  // wide-baseline pair) is skipped, not handed to OpenCV (which would
+  // ask for a buffer of negative size).
+  const int matched_columns = width + std::min(0, min_disp) - std::max(0, min_disp + num_disp);
+  if (matched_columns < width / 4) return false;
   cv::Mat ga, gb, disp;
   cv::cvtColor(ra, ga, cv::COLOR_BGR2GRAY);
   cv::cvtColor(rb, gb, cv::COLOR_BGR2GRAY);
@@ -354,9 +369,10 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
     const cv::Vec3b* colour = ra.ptr<cv::Vec3b>(v);
     for (int u = 0; u < width; ++u) {
       if (d[u] <= min_disp * 16 || valid[u] < 0) continue;
-      const double dd = d[u] / 16.0;
+      const double dd = d[u] / 16.0 - offset;
+      if (dd <= 0) continue;
       const double z = f * baseline / dd;
-      const Eigen::Vector3d x = ci + world_from_rect * (z * Eigen::Vector3d((u - cx) / f, (v - cy) / f, 1.0));
+      const Eigen::Vector3d x = ci + world_from_rect * (z * Eigen::Vector3d((u - cxa) / f, (v - cy) / f, 1.0));
       points.Add(x, colour[u][2], colour[u][1], colour[u][0]);
     }
   }
@@ -387,41 +403,31 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
     paths.push_back(o.work_dir / (model.images[i].name + "+" + model.images[j].name + ".pts"));
   }
   std::vector<char> ok(order.size(), 0);
-  std::atomic<size_t> next{0};
   std::mutex mutex;
   size_t done = 0;
-  auto worker = [&] {
-    for (size_t k = next++; k < order.size(); k = next++) {
-      const auto [i, j] = order[k];
-      long long n = 0;
-      bool computed = false;
-      if (std::filesystem::exists(paths[k])) {
-        ok[k] = 1;  // computed by an earlier, interrupted run
-      } else {
-        ok[k] = DepthPointsOfPair(model, i, j, load_image, o, paths[k], &n) ? 1 : 0;
-        computed = true;
-      }
-      std::lock_guard<std::mutex> lock(mutex);
-      ++done;
-      if (ok[k]) {
-        ++s.pairs;
-        s.depth_points += n;
-      } else {
-        ++s.pairs_failed;
-      }
-      if (computed) {
-        ReportProgress(progress, static_cast<double>(done) / order.size(),
-                       model.images[i].name + " + " + model.images[j].name + ": " + std::to_string(n) +
-                           " depth points");
-      }
+  ParallelFor(order.size(), ThreadCount(o.num_threads), [&](size_t k) {
+    const auto [i, j] = order[k];
+    long long n = 0;
+    bool computed = false;
+    if (std::filesystem::exists(paths[k])) {
+      ok[k] = 1;  // computed by an earlier, interrupted run
+    } else {
+      ok[k] = DepthPointsOfPair(model, i, j, load_image, o, paths[k], &n) ? 1 : 0;
+      computed = true;
     }
-  };
-  const unsigned threads = o.num_threads > 0 ? static_cast<unsigned>(o.num_threads)
-                                             : std::max(1u, std::thread::hardware_concurrency());
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+    std::lock_guard<std::mutex> lock(mutex);
+    ++done;
+    if (ok[k]) {
+      ++s.pairs;
+      s.depth_points += n;
+    } else {
+      ++s.pairs_failed;
+    }
+    if (computed) {
+      ReportProgress(progress, static_cast<double>(done) / order.size(),
+                     model.images[i].name + " + " + model.images[j].name + ": " + std::to_string(n) + " depth points");
+    }
+  });
   std::vector<std::filesystem::path> files;
   for (size_t k = 0; k < order.size(); ++k) {
     if (ok[k]) files.push_back(paths[k]);

@@ -15,6 +15,7 @@
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/parallel.h"
 
 namespace aerotri {
 
@@ -117,45 +118,36 @@ std::vector<PairMatches> MatchPairs(const std::vector<ImageFeatures>& features,
 
   std::vector<PairMatches> verified;
   std::mutex mutex, flann_build;
-  std::atomic<size_t> next{0};
   std::atomic<size_t> done_pairs{0};
   const size_t total = pairs.size();
-  auto worker = [&] {
-    for (size_t t = next++; t < tasks.size(); t = next++) {
-      const int j = tasks[t].first;
-      if (features[j].keypoints.size() < 8) {
-        done_pairs += tasks[t].second.size();
-        continue;
-      }
-      // FLANN's randomised trees draw from the C library's rand(): build each
-      // under a lock with a seed of its own, so matches do not depend on
-      // thread scheduling and a re-run gives the same survey.
-      std::unique_ptr<cv::flann::Index> built;
-      {
-        std::lock_guard<std::mutex> lock(flann_build);
-        cvflann::seed_random(1000u + static_cast<unsigned>(j));
-        built = std::make_unique<cv::flann::Index>(float_desc[j], cv::flann::KDTreeIndexParams(4));
-      }
-      cv::flann::Index& index = *built;
-      for (int i : tasks[t].second) {
-        PairMatches m = MatchOne(features[i], float_desc[i], features[j], index, i, j, options);
-        const size_t done = ++done_pairs;
-        std::lock_guard<std::mutex> lock(mutex);
-        if (!m.inliers.empty()) verified.push_back(std::move(m));
-        if (progress && (done % 10 == 0 || done == total)) {
-          progress(static_cast<double>(done) / std::max<size_t>(1, total),
-                   std::to_string(done) + "/" + std::to_string(total) + " pairs, " +
-                       std::to_string(verified.size()) + " verified");
-        }
+  ParallelFor(tasks.size(), ThreadCount(options.num_threads), [&](size_t t) {
+    const int j = tasks[t].first;
+    if (features[j].keypoints.size() < 8) {
+      done_pairs += tasks[t].second.size();
+      return;
+    }
+    // FLANN's randomised trees draw from the C library's rand(): build each
+    // under a lock with a seed of its own, so matches do not depend on
+    // thread scheduling and a re-run gives the same survey.
+    std::unique_ptr<cv::flann::Index> built;
+    {
+      std::lock_guard<std::mutex> lock(flann_build);
+      cvflann::seed_random(1000u + static_cast<unsigned>(j));
+      built = std::make_unique<cv::flann::Index>(float_desc[j], cv::flann::KDTreeIndexParams(4));
+    }
+    cv::flann::Index& index = *built;
+    for (int i : tasks[t].second) {
+      PairMatches m = MatchOne(features[i], float_desc[i], features[j], index, i, j, options);
+      const size_t done = ++done_pairs;
+      std::lock_guard<std::mutex> lock(mutex);
+      if (!m.inliers.empty()) verified.push_back(std::move(m));
+      if (progress && (done % 10 == 0 || done == total)) {
+        progress(static_cast<double>(done) / std::max<size_t>(1, total),
+                 std::to_string(done) + "/" + std::to_string(total) + " pairs, " + std::to_string(verified.size()) +
+                     " verified");
       }
     }
-  };
-  const unsigned threads = options.num_threads > 0 ? options.num_threads
-                                                   : std::max(1u, std::thread::hardware_concurrency());
-  std::vector<std::thread> pool;
-  for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker);
-  worker();
-  for (auto& th : pool) th.join();
+  });
   std::sort(verified.begin(), verified.end(), [](const PairMatches& a, const PairMatches& b) {
     return std::make_pair(a.i, a.j) < std::make_pair(b.i, b.j);
   });

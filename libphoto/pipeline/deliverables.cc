@@ -202,7 +202,21 @@ bool RunDenseStage(const PipelineOptions& o) {
   const DenseCloud cloud = ComputeDenseCloud(
       model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
       StageProgress(o, "dense"), &summary);
-  if (cloud.positions.empty()) throw InvalidArgument("dense matching produced no points (no image pair to match)");
+  if (cloud.positions.empty()) {
+    // The sparse survey stands; say why there is no cloud instead of failing the run.
+    const std::string why = summary.pairs + summary.pairs_failed == 0
+                                ? "no pair of photos suits rectified stereo (none side by side with enough "
+                                  "shared points and parallax)"
+                                : "no depth points agreed in " + std::to_string(d.min_views) +
+                                      " depth maps (" + std::to_string(summary.pairs) + " pairs matched, " +
+                                      std::to_string(summary.pairs_failed) + " failed)";
+    Log(o, "warning: dense: " + why + "; no cloud or DSM written");
+    for (const fs::path& stale : {las, ply, dsm}) fs::remove(stale);  // of an earlier model
+    WriteTextFileAtomically(o.workspace / "dense.json",
+                            json({{"points", 0}, {"pairs", summary.pairs}, {"skipped", why}}).dump(2) + "\n");
+    RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
+    return false;
+  }
   CrsCloud out;
   out.xyz = ToCrs(cloud.positions, g, Threads(o));
   out.rgb = cloud.colours;
@@ -237,6 +251,10 @@ bool RunReportStage(const PipelineOptions& o) {
   const auto start = Clock::now();
   json report = ReadJson(o.workspace / "report.json", "georeference");
   std::string hillshade;
+  if (fs::exists(o.workspace / "dense.json")) {
+    const json dense = json::parse(ReadTextFile(o.workspace / "dense.json"));
+    if (dense.contains("skipped")) report["dense"] = {{"points", 0}, {"skipped", dense["skipped"]}};
+  }
   if (fs::exists(o.workspace / "dsm.tif") && fs::exists(o.workspace / "dense.json")) {
     const json dense = json::parse(ReadTextFile(o.workspace / "dense.json"));
     const GeoFrame g = FrameOf(report);

@@ -19,6 +19,7 @@
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/parallel.h"
 #include "libphoto/dense/dense_stereo.h"
 #include "libphoto/ingest/image_metadata.h"
 #include "libphoto/io/colmap_text.h"
@@ -217,29 +218,23 @@ bool RunFeatureStage(const PipelineOptions& o) {
   const auto start = Clock::now();
   fs::create_directories(o.workspace / "features");
   ProgressCallback progress = StageProgress(o, "features");
-  std::atomic<size_t> next{0}, done{0};
+  std::atomic<size_t> done{0};
   std::mutex mutex;
   std::vector<std::string> failures;
-  auto worker = [&] {
-    for (size_t k = next++; k < todo.size(); k = next++) {
-      const std::string& name = ingest.names[todo[k]];
-      try {
-        const ImageFeatures f = ExtractFeatures(images_dir / name, o.features);
-        WriteFeatures(f, FeaturePath(o, name));
-        std::lock_guard<std::mutex> lock(mutex);
-        ReportProgress(progress, static_cast<double>(++done) / todo.size(),
-                       name + ": " + std::to_string(f.keypoints.size()) + " features");
-      } catch (const Error& e) {
-        std::lock_guard<std::mutex> lock(mutex);
-        failures.push_back(e.what());
-        ++done;
-      }
+  ParallelFor(todo.size(), Threads(o), [&](size_t k) {
+    const std::string& name = ingest.names[todo[k]];
+    try {
+      const ImageFeatures f = ExtractFeatures(images_dir / name, o.features);
+      WriteFeatures(f, FeaturePath(o, name));
+      std::lock_guard<std::mutex> lock(mutex);
+      ReportProgress(progress, static_cast<double>(++done) / todo.size(),
+                     name + ": " + std::to_string(f.keypoints.size()) + " features");
+    } catch (const Error& e) {
+      std::lock_guard<std::mutex> lock(mutex);
+      failures.push_back(e.what());
+      ++done;
     }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < Threads(o); ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+  });
   for (const auto& f : failures) Log(o, "warning: " + f + "; image skipped");
   RecordTiming(o, "features", std::chrono::duration<double>(Clock::now() - start).count());
   return true;

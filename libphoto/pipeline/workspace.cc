@@ -10,6 +10,7 @@
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/parallel.h"
 
 namespace aerotri {
 namespace fs = std::filesystem;
@@ -43,10 +44,7 @@ void RecordTiming(const PipelineOptions& o, const std::string& stage, double sec
   WriteTextFileAtomically(path, timings.dump(2) + "\n");
 }
 
-unsigned Threads(const PipelineOptions& o) {
-  return o.num_threads > 0 ? static_cast<unsigned>(o.num_threads)
-                           : std::max(1u, std::thread::hardware_concurrency());
-}
+unsigned Threads(const PipelineOptions& o) { return ThreadCount(o.num_threads); }
 
 json ReadJson(const fs::path& path, const char* stage) {
   if (!fs::exists(path)) {
