@@ -326,6 +326,8 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
       << d.value("height", 0) << " cells of " << Num(Get(d, "resolution_m"), 3) << " m, "
       << Num(100.0 * Get(d, "filled_fraction", NAN), 1) << " % with data. Hillshade:</p>"
       << "<img class='dsm' alt='DSM hillshade' src='data:image/png;base64," << Base64(hillshade_png) << "'>";
+  } else if (r.contains("dense") && r["dense"].contains("skipped")) {
+    h << "<p>No dense cloud or DSM: " << Escape(r["dense"]["skipped"].get<std::string>()) << ".</p>";
   } else {
     h << "<p>No DSM.</p>";
   }
