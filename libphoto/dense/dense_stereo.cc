@@ -28,7 +28,6 @@ struct Partner {
   double angle_deg = 0.0;
 };
 
-// For each registered image, the neighbours to match it with, best first.
 // Rectified stereo needs the baseline across both views, as in a survey
 // strip: each optical axis at least 60 degrees from it. A pair that moved
 // along its view (a ground-level walk, a strip's consecutive oblique frames)
@@ -41,6 +40,7 @@ bool SideBySide(const Image& a, const Image& b) {
   return std::abs(base.dot(za)) < limit && std::abs(base.dot(zb)) < limit;
 }
 
+// For each registered image, the neighbours to match it with, best first.
 std::vector<std::vector<Partner>> ChoosePartners(const SparseModel& model, const DenseOptions& o) {
   const size_t n = model.images.size();
   std::vector<std::vector<int>> images_of_point(model.points.size());
