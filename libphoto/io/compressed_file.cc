@@ -11,6 +11,7 @@
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/parallel.h"
 
 namespace aerotri {
 namespace {
@@ -150,34 +151,28 @@ bool DecompressBlocksInParallel(const std::string& raw, std::string* out) {
   if (blocks.size() < 2 || magics.back().second) return false;
 
   std::vector<std::string> parts(blocks.size());
-  std::atomic<size_t> next{0};
   std::atomic<bool> ok{true};
-  auto worker = [&] {
+  ParallelFor(blocks.size(), threads, [&](size_t b) {
+    if (!ok) return;
     std::string error;
-    for (size_t b = next++; b < blocks.size() && ok; b = next++) {
-      const auto [start, stop] = blocks[b];
-      if (stop - start < 48 + 32) {
-        ok = false;
-        return;
-      }
-      BitWriter writer;
-      writer.Put('B', 8);
-      writer.Put('Z', 8);
-      writer.Put('h', 8);
-      writer.Put('9', 8);
-      writer.CopyBits(raw, start, stop);
-      writer.Put(kEndMagic, 48);
-      std::uint64_t crc = 0;
-      for (std::uint64_t i = start + 48; i < start + 80; ++i) crc = (crc << 1) | BitWriter::Bit(raw, i);
-      writer.Put(crc, 32);
-      const std::string stream = writer.Finish();
-      if (!DecompressStreams(stream.data(), stream.size(), &parts[b], &error)) ok = false;
+    const auto [start, stop] = blocks[b];
+    if (stop - start < 48 + 32) {
+      ok = false;
+      return;
     }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+    BitWriter writer;
+    writer.Put('B', 8);
+    writer.Put('Z', 8);
+    writer.Put('h', 8);
+    writer.Put('9', 8);
+    writer.CopyBits(raw, start, stop);
+    writer.Put(kEndMagic, 48);
+    std::uint64_t crc = 0;
+    for (std::uint64_t i = start + 48; i < start + 80; ++i) crc = (crc << 1) | BitWriter::Bit(raw, i);
+    writer.Put(crc, 32);
+    const std::string stream = writer.Finish();
+    if (!DecompressStreams(stream.data(), stream.size(), &parts[b], &error)) ok = false;
+  });
   if (!ok) return false;
   size_t total = 0;
   for (const auto& p : parts) total += p.size();

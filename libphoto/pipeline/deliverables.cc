@@ -11,6 +11,7 @@
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/parallel.h"
 #include "libphoto/dense/dense_stereo.h"
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/point_cloud.h"
@@ -50,14 +51,10 @@ std::vector<Eigen::Vector3d> ToCrs(const std::vector<Eigen::Vector3d>& enu, cons
     const Crs crs = Crs::FromString(g.crs.definition());
     for (size_t i = begin; i < end; ++i) out[i] = crs.FromGeodetic(g.frame.GeodeticFromEnu(enu[i]));
   };
-  std::vector<std::thread> pool;
   const size_t chunk = (enu.size() + threads - 1) / std::max(1u, threads);
-  for (unsigned t = 1; t < threads; ++t) {
-    const size_t b = std::min(enu.size(), t * chunk), e = std::min(enu.size(), (t + 1) * chunk);
-    pool.emplace_back(work, b, e);
-  }
-  work(0, std::min(enu.size(), chunk));
-  for (auto& t : pool) t.join();
+  ParallelFor(threads, threads, [&](size_t t) {
+    work(std::min(enu.size(), t * chunk), std::min(enu.size(), (t + 1) * chunk));
+  });
   return out;
 }
 

@@ -6,6 +6,7 @@
 #include <random>
 #include <thread>
 
+#include "libphoto/base/parallel.h"
 #include "libphoto/simulate/synthetic_survey.h"
 
 namespace aerotri {
@@ -98,8 +99,7 @@ cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions&
   cv::Mat image(camera.height, camera.width, CV_8UC3);
   const int ss = std::max(1, options.supersample);
   const Eigen::Matrix3d world_from_cam = pose.cam_from_world.conjugate().toRotationMatrix();
-  const unsigned threads = options.num_threads > 0 ? options.num_threads
-                                                   : std::max(1u, std::thread::hardware_concurrency());
+  const unsigned threads = ThreadCount(options.num_threads);
   auto render_rows = [&](int first, int step) {
     std::mt19937 rng(options.seed * 7919u + first);
     std::normal_distribution<double> noise(0.0, options.noise_dn);
@@ -127,10 +127,8 @@ cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions&
       }
     }
   };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(render_rows, static_cast<int>(t), static_cast<int>(threads));
-  render_rows(0, static_cast<int>(threads));
-  for (auto& t : pool) t.join();
+  // Thread t renders rows t, t + threads, ...; each with its own noise stream.
+  ParallelFor(threads, threads, [&](size_t t) { render_rows(static_cast<int>(t), static_cast<int>(threads)); });
   return image;
 }
 
