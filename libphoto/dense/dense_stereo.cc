@@ -2,7 +2,6 @@
 #include "libphoto/dense/dense_stereo.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -10,7 +9,6 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <mutex>
-#include <thread>
 #include <unordered_map>
 
 #include "libphoto/base/atomic_file.h"

@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <map>
-#include <thread>
 
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"

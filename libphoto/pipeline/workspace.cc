@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <thread>
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"

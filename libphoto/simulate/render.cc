@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
-#include <thread>
 
 #include "libphoto/base/parallel.h"
 #include "libphoto/simulate/synthetic_survey.h"
