@@ -14,7 +14,19 @@
 namespace aerotri {
 namespace {
 
-constexpr char kMagic[8] = {'A', 'E', 'R', 'S', 'I', 'F', 'T', '1'};
+// Format 2: keypoints in the project's pixel convention. Format 1 files hold
+// OpenCV's raw coordinates, 0.25 px high (see kSiftCentreCorrectionPx); they
+// are read and corrected.
+constexpr char kMagic[8] = {'A', 'E', 'R', 'S', 'I', 'F', 'T', '2'};
+constexpr char kMagicV1[8] = {'A', 'E', 'R', 'S', 'I', 'F', 'T', '1'};
+
+// OpenCV's SIFT builds its first octave from the image doubled by
+// cv::resize (INTER_LINEAR, half-pixel centres: doubled pixel u sits at
+// original u/2 − 0.25), finds every keypoint in doubled-image units (coarser
+// octaves are exact subsamplings of it) and halves them. The halving leaves
+// every coordinate 0.25 px high against pixel centres at integers; a blob
+// test (tests/features_test.cc) measures the bias on every octave.
+constexpr float kSiftCentreCorrectionPx = -0.25f;
 
 // Keeps at most max_features keypoints, spread over the image: an equal
 // share per cell of an 8 x 8 grid (strongest first), the rest of the budget
@@ -101,8 +113,8 @@ ImageFeatures ExtractFeatures(const cv::Mat& image, const FeatureOptions& option
   f.descriptors.create(static_cast<int>(kps.size()), 128, CV_8U);
   for (size_t i = 0; i < kps.size(); ++i) {
     Keypoint k;
-    k.x = kps[i].pt.x;
-    k.y = kps[i].pt.y;
+    k.x = kps[i].pt.x + kSiftCentreCorrectionPx;
+    k.y = kps[i].pt.y + kSiftCentreCorrectionPx;
     k.size = kps[i].size;
     k.angle = kps[i].angle;
     const int px = std::clamp(static_cast<int>(std::lround(k.x)), 0, image.cols - 1);
@@ -151,7 +163,11 @@ ImageFeatures ReadFeatures(const std::filesystem::path& path) {
     if (offset + bytes > data.size()) throw ParseError(p, 0, "truncated feature file");
   };
   need(0, 28);
-  if (std::memcmp(data.data(), kMagic, 8) != 0) throw ParseError(p, 0, "not an aerotri feature file (bad magic)");
+  const bool v1 = std::memcmp(data.data(), kMagicV1, 8) == 0;
+  if (!v1 && std::memcmp(data.data(), kMagic, 8) != 0) {
+    throw ParseError(p, 0, "not an aerotri feature file (bad magic)");
+  }
+  const float shift = v1 ? kSiftCentreCorrectionPx : 0.0f;
   ImageFeatures f;
   std::int32_t w, h, n;
   std::memcpy(&w, data.data() + 8, 4);
@@ -168,8 +184,8 @@ ImageFeatures ReadFeatures(const std::filesystem::path& path) {
     float v[4];
     std::memcpy(v, data.data() + off, 16);
     Keypoint& k = f.keypoints[i];
-    k.x = v[0];
-    k.y = v[1];
+    k.x = v[0] + shift;
+    k.y = v[1] + shift;
     k.size = v[2];
     k.angle = v[3];
     for (int c = 0; c < 3; ++c) k.rgb[c] = static_cast<std::uint8_t>(data[off + 16 + c]);

@@ -10,8 +10,12 @@
 // pixels (centre of the top-left pixel at (0, 0)), which is the frame of the
 // whole sparse reconstruction. full = (work + 0.5) * scale - 0.5.
 //
+// Keypoint coordinates follow that convention whatever octave they come
+// from (OpenCV's own are 0.25 px high; see features.cc).
+//
 // Files: features/<image>.sift, binary, little-endian:
-//   "AERSIFT1", int32 width, height (working), float64 scale, int32 count,
+//   "AERSIFT2" ("AERSIFT1": the same with OpenCV's raw coordinates, corrected
+//   on reading), int32 width, height (working), float64 scale, int32 count,
 //   count x (float32 x, y, size, angle, uint8 r, g, b, pad),
 //   count x 128 uint8 descriptors (RootSIFT x 512, clipped to 255).
 
