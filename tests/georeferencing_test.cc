@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include "libphoto/base/error.h"
 #include "libphoto/simulate/synthetic_georef.h"
 #include "tests/test_util.h"
@@ -165,6 +167,108 @@ TEST(Georeferencing, CompoundCrsReportsGeoidHeights) {
     const double h = frame.GeodeticFromEnu(truth->position).h_m;
     EXPECT_NEAR(report.check[i].surveyed_crs.z(), h - 50.09, 0.05) << report.check[i].name;
   }
+}
+
+
+// GPS altitudes in the wrong height reference (every fix 50 m high) against
+// 8 correct control points: the control holds the datum, the GPS offset is
+// found before the adjustment and estimated in it, and the lens is not bent
+// to absorb it.
+TEST(Georeferencing, ControlHoldsTheDatumAgainstAGpsHeightOffset) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(26), {});
+  std::map<std::string, GpsFix> gps = scene.gps;
+  for (auto& [name, fix] : gps) fix.position.h_m += 50.0;
+  SparseModel model = ArbitraryFrame(scene.tie_model, 26);
+  const GeoreferenceReport report =
+      GeoreferenceAndAdjust(&model, gps, &scene.control, &scene.checks, Options());
+  SCOPED_TRACE(report.bundle.BriefReport());
+  ASSERT_TRUE(report.gps_vs_control.measured);
+  EXPECT_TRUE(report.gps_vs_control.significant);
+  EXPECT_TRUE(report.gps_vs_control.rejected.empty());
+  // ~60 fixes of 4 m vertical noise: the mean is good to ~0.5 m.
+  const double n = report.gps_vs_control.consistent;
+  EXPECT_NEAR(report.gps_vs_control.offset_enu_m.z(), 50.0, 4.0 * 4.0 / std::sqrt(n));
+  ASSERT_TRUE(report.bundle.gps_offset_estimated);
+  EXPECT_NEAR(report.bundle.gps_offset_m.z(), 50.0, 4.0 * 4.0 / std::sqrt(n));
+  EXPECT_NEAR(report.bundle.gps_offset_m.x(), 0.0, 4.0 * 2.0 / std::sqrt(n));
+  bool warned = false;
+  for (const std::string& w : report.warnings) warned |= w.find("constant offset") != std::string::npos;
+  EXPECT_TRUE(warned);
+  // Focal length within 0.1 % of truth (3000 px), checks at the clean level.
+  EXPECT_NEAR(model.cameras[0].params[0], 3000.0, 3.0);
+  ASSERT_EQ(report.check_stats.count, 6);
+  EXPECT_LT(report.check_stats.rmse_3d_m, 0.04);
+  // Camera residuals against the offset-corrected GPS look like GPS noise.
+  double sum_v = 0.0;
+  for (const CameraResult& c : report.cameras) sum_v += c.d_enu_m.z() * c.d_enu_m.z();
+  const double rms_v = std::sqrt(sum_v / report.cameras.size());
+  EXPECT_GT(rms_v, 2.5);
+  EXPECT_LT(rms_v, 5.5);
+
+  // With --gps-offset never the conflict is still reported, and nothing is estimated.
+  SparseModel held = ArbitraryFrame(scene.tie_model, 26);
+  GeoreferenceOptions never = Options();
+  never.gps_offset = GpsOffsetPolicy::kNever;
+  const GeoreferenceReport r2 = GeoreferenceAndAdjust(&held, gps, &scene.control, &scene.checks, never);
+  EXPECT_TRUE(r2.gps_vs_control.significant);
+  EXPECT_FALSE(r2.bundle.gps_offset_estimated);
+}
+
+// Clean GPS: measured against the control, no offset found, none estimated.
+TEST(Georeferencing, CleanGpsShowsNoOffset) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(27), {});
+  SparseModel model = ArbitraryFrame(scene.tie_model, 27);
+  const GeoreferenceReport report =
+      GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, Options());
+  ASSERT_TRUE(report.gps_vs_control.measured);
+  EXPECT_FALSE(report.gps_vs_control.significant);
+  EXPECT_FALSE(report.bundle.gps_offset_estimated);
+  EXPECT_TRUE(report.gps_vs_control.rejected.empty());
+  const double n = report.gps_vs_control.consistent;
+  EXPECT_EQ(n, static_cast<double>(scene.gps.size()));
+  // The mean of n fixes of 2 m / 4 m noise: within 4 standard errors of zero,
+  // and its spread is the injected noise.
+  EXPECT_LT(report.gps_vs_control.offset_enu_m.head<2>().norm(), 4.0 * 2.0 / std::sqrt(n));
+  EXPECT_LT(std::abs(report.gps_vs_control.offset_enu_m.z()), 4.0 * 4.0 / std::sqrt(n));
+  EXPECT_GT(report.gps_vs_control.rms_after_offset_m.x(), 1.4);
+  EXPECT_LT(report.gps_vs_control.rms_after_offset_m.x(), 2.6);
+  EXPECT_GT(report.gps_vs_control.rms_after_offset_m.z(), 2.8);
+  EXPECT_LT(report.gps_vs_control.rms_after_offset_m.z(), 5.2);
+}
+
+// A third of the fixes 50 m off (blunders, not an offset): named, left out of
+// the adjustment, and the result is that of the clean survey.
+TEST(Georeferencing, BlunderedGpsFixesAreNamedAndLeftOut) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(28), {});
+  SparseModel clean_model = ArbitraryFrame(scene.tie_model, 28);
+  const GeoreferenceReport clean =
+      GeoreferenceAndAdjust(&clean_model, scene.gps, &scene.control, &scene.checks, Options());
+
+  std::map<std::string, GpsFix> gps = scene.gps;
+  std::set<std::string> corrupted;
+  std::mt19937 rng(28);
+  std::uniform_real_distribution<double> angle(0.0, 2 * M_PI);
+  int k = 0;
+  const LocalFrame frame(gps.begin()->second.position);
+  for (auto& [name, fix] : gps) {
+    if (k++ % 3 != 0) continue;
+    const double a = angle(rng);
+    fix.position = frame.GeodeticFromEnu(frame.EnuFromGeodetic(fix.position) +
+                                         Eigen::Vector3d(50.0 * std::cos(a), 50.0 * std::sin(a), 0.0));
+    corrupted.insert(name);
+  }
+  SparseModel model = ArbitraryFrame(scene.tie_model, 28);
+  const GeoreferenceReport report =
+      GeoreferenceAndAdjust(&model, gps, &scene.control, &scene.checks, Options());
+  const std::set<std::string> rejected(report.gps_vs_control.rejected.begin(),
+                                       report.gps_vs_control.rejected.end());
+  EXPECT_EQ(rejected, corrupted);
+  EXPECT_FALSE(report.gps_vs_control.significant);
+  for (const CameraResult& c : report.cameras) {
+    EXPECT_EQ(c.prior_rejected, corrupted.count(c.name) > 0) << c.name;
+  }
+  ASSERT_EQ(report.check_stats.count, 6);
+  EXPECT_LT(report.check_stats.rmse_3d_m, 1.5 * clean.check_stats.rmse_3d_m);
 }
 
 }  // namespace

@@ -54,6 +54,10 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
                   "Pixel convention of GCP files: corner (ODM/COLMAP: top-left pixel centre at "
                   "0.5, 0.5) or centre (at 0, 0)")
       ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
+  cmd->add_option("--gps-offset", a->gps_offset,
+                  "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
+                  "control points: auto (when the control shows a significant one), always or never")
+      ->check(CLI::IsMember({"never", "auto", "always"}))->capture_default_str();
   cmd->add_option("--crs", a->crs,
                   "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
                   "file's CRS, else the UTM zone of the survey centre");
@@ -87,6 +91,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   options.output_crs = args.crs;
   options.gcp_sigma_h_m = args.gcp_sigma_h_m;
   options.gcp_sigma_v_m = args.gcp_sigma_v_m;
+  options.gps_offset = *ParseGpsOffsetPolicy(args.gps_offset);
   options.progress = ctx.Progress("adjust");
   BundleOptions& bundle = options.bundle;
   ApplyAdjustmentOptions(args.loss, args.loss_scale_px, args.refine, &bundle);

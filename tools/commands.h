@@ -53,6 +53,7 @@ struct AdjustArgs {
   std::string gps_altitude = "egm96";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
+  std::string gps_offset = "auto";  // never, auto, always
   std::string gcp_pixel_origin = "corner";
   std::string refine = "all";
   std::string loss = "huber";
@@ -112,6 +113,7 @@ struct RunArgs {
   std::string gcp_pixel_origin = "corner";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
+  std::string gps_offset = "auto";  // never, auto, always
   std::string crs;
   double dense_resolution_m = 0.0;
   int dense_min_views = 2;

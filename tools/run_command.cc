@@ -52,6 +52,10 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
       ->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
       ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gps-offset", a->gps_offset,
+                  "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
+                  "control points: auto (when the control shows a significant one), always or never")
+      ->check(CLI::IsMember({"never", "auto", "always"}))->capture_default_str();
   cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
   cmd->add_option("--dense-resolution", a->dense_resolution_m,
                   "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
@@ -136,6 +140,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.cog = a.cog;
   o.georef.gcp_sigma_h_m = a.gcp_sigma_h_m;
   o.georef.gcp_sigma_v_m = a.gcp_sigma_v_m;
+  o.georef.gps_offset = *ParseGpsOffsetPolicy(a.gps_offset);
   o.georef.bundle.loss = LossType::kHuber;
   o.georef.bundle.loss_scale_px = 1.0;
   o.georef.bundle.outlier_threshold_px = 4.0;

@@ -133,6 +133,7 @@ struct RoundResult {
   int num_gps = 0;
   int num_gcp = 0;
   int skipped_points = 0;
+  bool offset_estimated = false;
   double setup_s = 0.0;
 };
 
@@ -182,7 +183,10 @@ void RestoreDatum(const Datum& datum, bool restore_rotation, bool restore_scale,
   }
 }
 
-RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round) {
+// gps_offset: the shared GPS offset block (BundleOptions::estimate_gps_offset),
+// in and out.
+RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
+                      double* gps_offset) {
   const auto setup_start = Clock::now();
   RoundResult result;
   const auto per_point = model->ObservationsPerPoint();
@@ -342,15 +346,38 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
+  // GPS priors, through the shared offset block when it is estimated. Without
+  // a control prior the offset and the block's translation are one freedom:
+  // the offset then stays where it is.
+  int num_control_priors = 0;
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    const Point& point = model->points[p];
+    num_control_priors += options.use_gcp_priors && point_used[p] &&
+                          point.role == PointRole::kControl && point.prior.has_value();
+  }
   if (options.use_gps_priors) {
     for (size_t i = 0; i < num_images; ++i) {
       Image& image = model->images[i];
       if (!image_used[i] || !image.gps_prior) continue;
-      problem.AddResidualBlock(new PositionPriorCost(image.gps_prior->position,
-                                                     image.gps_prior->sigma_h_m,
-                                                     image.gps_prior->sigma_v_m),
-                               nullptr, image.pose.centre_in_world.data());
+      if (options.estimate_gps_offset) {
+        problem.AddResidualBlock(new OffsetPositionPriorCost(image.gps_prior->position,
+                                                             image.gps_prior->sigma_h_m,
+                                                             image.gps_prior->sigma_v_m),
+                                 nullptr, image.pose.centre_in_world.data(), gps_offset);
+      } else {
+        problem.AddResidualBlock(new PositionPriorCost(image.gps_prior->position,
+                                                       image.gps_prior->sigma_h_m,
+                                                       image.gps_prior->sigma_v_m),
+                                 nullptr, image.pose.centre_in_world.data());
+      }
       ++result.num_gps;
+    }
+    if (options.estimate_gps_offset && problem.HasParameterBlock(gps_offset)) {
+      if (num_control_priors == 0) {
+        problem.SetParameterBlockConstant(gps_offset);
+      } else {
+        result.offset_estimated = true;
+      }
     }
   }
   for (size_t c = 0; c < model->cameras.size() && c < options.focal_prior_px.size(); ++c) {
@@ -415,6 +442,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     if (datum_from_priors) {
       gauge << "datum from priors (" << result.num_gps << " GPS, " << result.num_gcp
             << " GCP); no parameter held fixed";
+      if (result.offset_estimated) gauge << "; GPS offset estimated, translation from the GCPs";
     } else if (datum.a >= 0) {
       const std::string a = model->images[datum.a].name;
       const std::string b = datum.b >= 0 ? model->images[datum.b].name : "";
@@ -486,6 +514,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       ordering->AddElementToGroup(model->cameras[c].params.data(), 1);
     }
   }
+  if (problem.HasParameterBlock(gps_offset)) ordering->AddElementToGroup(gps_offset, 1);
   if (result.num_points > 0) solver_options.linear_solver_ordering = ordering;
 
   std::unique_ptr<IterationForwarder> forwarder;
@@ -694,8 +723,11 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   }
 
   const int max_rounds = options.outlier_threshold_px > 0.0 ? options.max_outlier_rounds : 0;
+  Eigen::Vector3d gps_offset = options.initial_gps_offset_m;
   for (int round = 0;; ++round) {
-    RoundResult result = SolveOnce(model, options, round);
+    RoundResult result = SolveOnce(model, options, round, gps_offset.data());
+    summary.gps_offset_estimated = result.offset_estimated;
+    summary.gps_offset_m = gps_offset;
     if (round == 0) {
       summary.initial_cost = result.ceres.initial_cost;
       summary.gauge = result.gauge;
@@ -789,6 +821,10 @@ std::string BundleSummary::BriefReport() const {
   out << "  iterations: " << iterations << ", termination: " << termination << "\n";
   out << "  observations behind their camera (kept): " << num_behind_camera_initial
       << " initially, " << num_behind_camera_final << " after\n";
+  if (gps_offset_estimated) {
+    out << "  GPS offset (GPS minus camera, E N U): " << gps_offset_m.x() << " " << gps_offset_m.y()
+        << " " << gps_offset_m.z() << " m\n";
+  }
   if (outlier_rounds > 0 || outliers_removed > 0) {
     out << "  outliers rejected: " << outliers_removed << " in " << outlier_rounds
         << " rounds\n";

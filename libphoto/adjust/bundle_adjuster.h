@@ -19,6 +19,7 @@
 // Costs follow Ceres: ½Σ‖r‖² over all (robustified) residuals; with no priors,
 // no loss and sigma 1 px this is the BAL literature's cost in px².
 
+#include <Eigen/Core>
 #include <functional>
 #include <string>
 #include <vector>
@@ -81,6 +82,15 @@ struct BundleOptions {
   bool use_gps_priors = true;
   bool use_gcp_priors = true;
 
+  // A constant offset of every GPS position from its camera centre (GNSS
+  // antenna or datum offset, e.g. altitudes in the wrong height reference),
+  // estimated as one 3-vector shared by all GPS priors:
+  //   r = (C + o − GPS) / σ.
+  // Needs control points to anchor the translation; with none used, o stays
+  // at its initial value. initial_gps_offset_m is the start (ENU metres).
+  bool estimate_gps_offset = false;
+  Eigen::Vector3d initial_gps_offset_m = Eigen::Vector3d::Zero();
+
   LinearSolverChoice linear_solver = LinearSolverChoice::kAuto;
   int num_threads = 0;  // 0: all hardware threads
   int max_iterations = 100;
@@ -134,6 +144,12 @@ struct BundleSummary {
   int outliers_removed = 0;
   std::string termination;      // Ceres termination type and message
   bool converged = false;
+
+  // GPS minus camera centre (ENU metres): estimated when
+  // BundleOptions::estimate_gps_offset and control anchored it, else the
+  // initial value held fixed.
+  bool gps_offset_estimated = false;
+  Eigen::Vector3d gps_offset_m = Eigen::Vector3d::Zero();
 
   std::string linear_solver;
   std::string gauge;            // what anchors the datum

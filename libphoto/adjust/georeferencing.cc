@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <unordered_map>
 
 #include "libphoto/base/error.h"
@@ -29,6 +30,12 @@ std::vector<View> ViewsOf(const SparseModel& model, int point_index) {
   return views;
 }
 
+std::string FormatMetres(double m) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3f m", m);
+  return text;
+}
+
 void ApplySimilarity(const Similarity& s, SparseModel* model) {
   for (Image& image : model->images) {
     image.pose.centre_in_world = s.Apply(image.pose.centre_in_world);
@@ -38,6 +45,22 @@ void ApplySimilarity(const Similarity& s, SparseModel* model) {
 }
 
 }  // namespace
+
+std::string ToString(GpsOffsetPolicy policy) {
+  switch (policy) {
+    case GpsOffsetPolicy::kNever: return "never";
+    case GpsOffsetPolicy::kAuto: return "auto";
+    case GpsOffsetPolicy::kAlways: return "always";
+  }
+  return "?";
+}
+
+std::optional<GpsOffsetPolicy> ParseGpsOffsetPolicy(const std::string& text) {
+  for (GpsOffsetPolicy p : {GpsOffsetPolicy::kNever, GpsOffsetPolicy::kAuto, GpsOffsetPolicy::kAlways}) {
+    if (ToString(p) == text) return p;
+  }
+  return std::nullopt;
+}
 
 GroundPointResult EvaluateGroundPoint(const std::string& name, PointRole role,
                                       const std::vector<View>& views, const Geodetic& surveyed,
@@ -150,6 +173,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
 
   // 2. Priors on the cameras.
   int num_gps = 0;
+  std::map<int, PositionPrior> rejected_gps;  // by image index, restored after the adjustment
   for (Image& image : model->images) image.gps_prior.reset();
   for (const auto& [name, fix] : gps) {
     const auto it = image_by_name.find(name);
@@ -194,16 +218,22 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
 
-  // 3. Robust similarity from the model frame onto the priors.
+  // 3. Robust similarity from the model frame onto the datum.
   ReportProgress(options.progress, 0.1, "initial similarity fit");
-  std::vector<Eigen::Vector3d> from, to;
-  double max_sigma = 0.0;
-  for (const Image& image : model->images) {
+  std::vector<int> gps_images;  // registered images with GPS
+  std::vector<Eigen::Vector3d> gps_from, gps_to;
+  double gps_max_sigma = 0.0;
+  for (size_t i = 0; i < model->images.size(); ++i) {
+    const Image& image = model->images[i];
     if (!image.registered || !image.gps_prior) continue;
-    from.push_back(image.pose.centre_in_world);
-    to.push_back(image.gps_prior->position);
-    max_sigma = std::max({max_sigma, image.gps_prior->sigma_h_m, image.gps_prior->sigma_v_m});
+    gps_images.push_back(static_cast<int>(i));
+    gps_from.push_back(image.pose.centre_in_world);
+    gps_to.push_back(image.gps_prior->position);
+    gps_max_sigma = std::max({gps_max_sigma, image.gps_prior->sigma_h_m, image.gps_prior->sigma_v_m});
   }
+  std::vector<int> control_points;  // triangulated control, by model point index
+  std::vector<Eigen::Vector3d> control_from, control_to;
+  double control_max_sigma = 0.0;
   std::vector<char> triangulated(model->points.size(), 0);
   for (const SurveyedPoint& s : surveyed) {
     if (s.role != PointRole::kControl) continue;
@@ -211,31 +241,66 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     if (!t) continue;
     triangulated[s.point_index] = 1;
     model->points[s.point_index].position = t->position;
-    from.push_back(t->position);
-    to.push_back(model->points[s.point_index].prior->position);
+    control_points.push_back(s.point_index);
+    control_from.push_back(t->position);
     const PositionPrior& p = *model->points[s.point_index].prior;
-    max_sigma = std::max({max_sigma, p.sigma_h_m, p.sigma_v_m});
+    control_to.push_back(p.position);
+    control_max_sigma = std::max({control_max_sigma, p.sigma_h_m, p.sigma_v_m});
   }
-  report.helmert_correspondences = static_cast<int>(from.size());
-  const double threshold =
-      options.helmert_inlier_m > 0.0 ? options.helmert_inlier_m : std::max(0.5, 5.0 * max_sigma);
-  const auto fit = FitSimilarityRobust(from, to, threshold, 1);
+  auto threshold_for = [&](double max_sigma) {
+    return options.helmert_inlier_m > 0.0 ? options.helmert_inlier_m : std::max(0.5, 5.0 * max_sigma);
+  };
+
+  // With three or more non-collinear control points the datum is theirs.
+  std::optional<SimilarityFit> fit;
+  if (control_from.size() >= 3) {
+    const double threshold = threshold_for(control_max_sigma);
+    fit = FitSimilarityRobust(control_from, control_to, threshold, 1);
+    if (fit && fit->num_inliers >= 3) {
+      report.datum_source = "control points (" + std::to_string(fit->num_inliers) + " of " +
+                            std::to_string(control_from.size()) + " in the initial similarity)";
+      report.helmert_correspondences = static_cast<int>(control_from.size());
+      if (fit->num_inliers < static_cast<int>(control_from.size())) {
+        std::string names;
+        for (size_t k = 0; k < control_points.size(); ++k) {
+          if (!fit->inliers[k]) names += (names.empty() ? "" : ", ") + model->points[control_points[k]].name;
+        }
+        report.warnings.push_back(std::to_string(control_from.size() - fit->num_inliers) + " of " +
+                                  std::to_string(control_from.size()) +
+                                  " control points disagree with the others by more than " +
+                                  FormatMetres(threshold) + " in the initial fit: " + names);
+      }
+    } else {
+      fit.reset();
+    }
+  }
+
+  const bool control_datum = fit.has_value();
   if (!fit) {
-    throw InvalidArgument(
-        "cannot georeference: need GPS on 3 or more non-collinear images, or 3 or more control "
-        "points measured in 2 or more images each (have " +
-        std::to_string(num_gps) + " GPS positions and " +
-        std::to_string(from.size() - std::min<size_t>(from.size(), num_gps)) +
-        " triangulated control points)");
+    // Too little control: GPS and control together.
+    std::vector<Eigen::Vector3d> from = gps_from, to = gps_to;
+    from.insert(from.end(), control_from.begin(), control_from.end());
+    to.insert(to.end(), control_to.begin(), control_to.end());
+    report.helmert_correspondences = static_cast<int>(from.size());
+    const double threshold = threshold_for(std::max(gps_max_sigma, control_max_sigma));
+    fit = FitSimilarityRobust(from, to, threshold, 1);
+    if (!fit) {
+      throw InvalidArgument(
+          "cannot georeference: need GPS on 3 or more non-collinear images, or 3 or more control "
+          "points measured in 2 or more images each (have " +
+          std::to_string(num_gps) + " GPS positions and " + std::to_string(control_from.size()) +
+          " triangulated control points)");
+    }
+    report.datum_source = control_from.empty() ? "GPS" : "GPS and control points";
+    if (fit->num_inliers < static_cast<int>(from.size())) {
+      report.warnings.push_back(std::to_string(from.size() - fit->num_inliers) + " of " +
+                                std::to_string(from.size()) +
+                                " priors disagree with the model by more than " +
+                                FormatMetres(threshold) + " in the initial fit");
+    }
   }
   report.helmert_inliers = fit->num_inliers;
   report.helmert_rms_m = fit->rms_m;
-  if (fit->num_inliers < static_cast<int>(from.size())) {
-    report.warnings.push_back(std::to_string(from.size() - fit->num_inliers) + " of " +
-                              std::to_string(from.size()) +
-                              " priors disagree with the model by more than " +
-                              std::to_string(threshold) + " m in the initial fit");
-  }
   ApplySimilarity(fit->transform, model);
   for (const SurveyedPoint& s : surveyed) {
     Point& point = model->points[s.point_index];
@@ -244,9 +309,111 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
 
+  GpsVersusControl& versus = report.gps_vs_control;
+  if (control_datum && !gps_images.empty()) {
+    // GPS minus the camera centres of an adjustment held by the control
+    // alone; a constant part is an offset (antenna, height reference), the
+    // rest GPS noise or blunders. The similarity alone would not do: its
+    // model still carries the reconstruction's intrinsics, and a focal
+    // length 1 % off moves every camera height by 1 % of the flying height.
+    ReportProgress(options.progress, 0.15, "adjustment on control alone: GPS against control");
+    BundleOptions control_only = options.bundle;
+    control_only.use_gps_priors = false;
+    const BundleSummary control_summary = AdjustBundle(model, control_only);
+    if (!control_summary.converged) {
+      report.warnings.push_back("adjustment on control alone (to judge the GPS) did not converge: " +
+                                control_summary.termination);
+    }
+    versus.measured = true;
+    versus.cameras = static_cast<int>(gps_images.size());
+    std::vector<Eigen::Vector3d> d(gps_images.size());
+    for (size_t k = 0; k < gps_images.size(); ++k) {
+      d[k] = gps_to[k] - model->images[gps_images[k]].pose.centre_in_world;
+    }
+    Eigen::Vector3d median;
+    for (int c = 0; c < 3; ++c) {
+      std::vector<double> v;
+      for (const auto& x : d) v.push_back(x[c]);
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      median[c] = v[v.size() / 2];
+    }
+    std::vector<char> consistent(gps_images.size(), 0);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sigma_sum = Eigen::Vector3d::Zero();
+    for (size_t k = 0; k < gps_images.size(); ++k) {
+      const PositionPrior& prior = *model->images[gps_images[k]].gps_prior;
+      const double threshold = threshold_for(std::max(prior.sigma_h_m, prior.sigma_v_m));
+      if ((d[k] - median).norm() > threshold) continue;
+      consistent[k] = 1;
+      ++versus.consistent;
+      sum += d[k];
+      sigma_sum += Eigen::Vector3d(prior.sigma_h_m, prior.sigma_h_m, prior.sigma_v_m);
+    }
+    if (versus.consistent > 0) {
+      const double n = versus.consistent;
+      versus.offset_enu_m = sum / n;
+      Eigen::Vector3d var = Eigen::Vector3d::Zero();
+      for (size_t k = 0; k < gps_images.size(); ++k) {
+        if (consistent[k]) var += (d[k] - versus.offset_enu_m).cwiseAbs2();
+      }
+      versus.rms_after_offset_m = (var / n).cwiseSqrt();
+      versus.offset_sigma_m = n > 1 ? Eigen::Vector3d((var / (n - 1) / n).cwiseSqrt())
+                                    : Eigen::Vector3d(sigma_sum / n);
+      const Eigen::Vector3d prior_sigma = sigma_sum / n;
+      for (int c = 0; c < 3; ++c) {
+        versus.significant |= std::abs(versus.offset_enu_m[c]) > 3.0 * versus.offset_sigma_m[c] &&
+                              std::abs(versus.offset_enu_m[c]) > prior_sigma[c];
+      }
+    }
+    // GPS positions that disagree with the control datum leave the adjustment.
+    for (size_t k = 0; k < gps_images.size(); ++k) {
+      if (consistent[k]) continue;
+      Image& image = model->images[gps_images[k]];
+      versus.rejected.push_back(image.name);
+      rejected_gps[gps_images[k]] = *image.gps_prior;
+      image.gps_prior.reset();
+    }
+    const Eigen::Vector3d& o = versus.offset_enu_m;
+    const Eigen::Vector3d& so = versus.offset_sigma_m;
+    const std::string offset_text = "E " + FormatMetres(o.x()) + " ± " + FormatMetres(so.x()) + ", N " +
+                                    FormatMetres(o.y()) + " ± " + FormatMetres(so.y()) + ", U " +
+                                    FormatMetres(o.z()) + " ± " + FormatMetres(so.z());
+    if (versus.significant) {
+      const bool estimate = options.gps_offset != GpsOffsetPolicy::kNever;
+      report.warnings.push_back(
+          "GPS and control disagree by a constant offset (GPS minus control datum, " +
+          std::to_string(versus.consistent) + " cameras): " + offset_text +
+          (estimate ? "; estimated in the adjustment as a GPS offset (antenna or height "
+                      "reference: check --gps-altitude)"
+                    : "; not estimated (--gps-offset never): the GPS pulls against the control"));
+    }
+    if (!versus.rejected.empty()) {
+      std::string names;
+      for (size_t k = 0; k < versus.rejected.size() && k < 10; ++k) {
+        names += (k ? ", " : "") + versus.rejected[k];
+      }
+      if (versus.rejected.size() > 10) names += ", ...";
+      report.warnings.push_back(std::to_string(versus.rejected.size()) + " of " +
+                                std::to_string(versus.cameras) +
+                                " GPS positions disagree with the control datum after the offset; "
+                                "left out of the adjustment: " + names);
+    }
+  }
+
+  BundleOptions bundle = options.bundle;
+  if (versus.measured && options.gps_offset != GpsOffsetPolicy::kNever &&
+      (versus.significant || options.gps_offset == GpsOffsetPolicy::kAlways)) {
+    bundle.estimate_gps_offset = true;
+    bundle.initial_gps_offset_m = versus.offset_enu_m;
+  } else if (options.gps_offset == GpsOffsetPolicy::kAlways && !gps_images.empty()) {
+    report.warnings.push_back(
+        "GPS offset not estimated: it needs 3 or more non-collinear control points measured in 2 "
+        "or more images each to hold the datum");
+  }
+
   // 4. Bundle adjustment with priors.
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
-  report.bundle = AdjustBundle(model, options.bundle);
+  report.bundle = AdjustBundle(model, bundle);
+  for (auto& [index, prior] : rejected_gps) model->images[index].gps_prior = prior;
 
   // 5. Check points from the adjusted cameras alone; residuals in the output CRS.
   ReportProgress(options.progress, 0.9, "check points");
@@ -268,7 +435,8 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     c.name = image.name;
     if (image.gps_prior) {
       c.has_prior = true;
-      c.d_enu_m = image.pose.centre_in_world - image.gps_prior->position;
+      c.prior_rejected = rejected_gps.count(static_cast<int>(&image - model->images.data())) > 0;
+      c.d_enu_m = image.pose.centre_in_world + report.bundle.gps_offset_m - image.gps_prior->position;
       c.sigma_h_m = image.gps_prior->sigma_h_m;
       c.sigma_v_m = image.gps_prior->sigma_v_m;
     }

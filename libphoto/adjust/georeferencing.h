@@ -9,9 +9,15 @@
 //  1. Control and check points are converted from their file's CRS to WGS84
 //     geodetic through PROJ; the ENU origin is the mean GPS position (or the
 //     mean control point when there is no GPS).
-//  2. Control points are triangulated in the model's own frame; a robust
-//     similarity (Helmert) fit maps camera centres and control points onto
-//     their priors, so a model in any frame and scale converges.
+//  2. Control points are triangulated in the model's own frame and a robust
+//     similarity (Helmert) maps the model onto the datum, so a model in any
+//     frame and scale converges. With three or more non-collinear control
+//     points triangulated, the datum comes from control alone and the GPS is
+//     judged against it: its constant offset from the control datum (GNSS
+//     antenna or height-reference error) is measured and, when significant,
+//     estimated in the adjustment (GpsOffsetPolicy); GPS positions that still
+//     disagree are named and left out. Otherwise camera GPS and control are
+//     fitted together.
 //  3. Bundle adjustment with GPS priors (horizontal / vertical sigmas) on the
 //     camera centres and surveyed priors on the control points; with three
 //     or more non-collinear priors no camera is held fixed.
@@ -36,6 +42,14 @@
 
 namespace aerotri {
 
+// When the adjustment estimates a constant GPS offset (GPS minus camera
+// centre, shared by all images): never; when the control datum shows a
+// significant one (kAuto: beyond 3 standard errors of the mean and beyond the
+// GPS sigma); or whenever three or more control points anchor the datum.
+enum class GpsOffsetPolicy { kNever, kAuto, kAlways };
+std::string ToString(GpsOffsetPolicy policy);
+std::optional<GpsOffsetPolicy> ParseGpsOffsetPolicy(const std::string& text);
+
 struct GeoreferenceOptions {
   std::string output_crs;       // empty: the control file's CRS, else UTM
   double gcp_sigma_h_m = 0.02;  // when the file gives none
@@ -43,6 +57,7 @@ struct GeoreferenceOptions {
   // Helmert inlier threshold (m); 0 picks 5x the largest prior sigma, at
   // least 0.5 m.
   double helmert_inlier_m = 0.0;
+  GpsOffsetPolicy gps_offset = GpsOffsetPolicy::kAuto;
   BundleOptions bundle;
   ProgressCallback progress;
 };
@@ -62,9 +77,26 @@ struct GroundPointResult {
 struct CameraResult {
   std::string name;
   bool has_prior = false;
-  Eigen::Vector3d d_enu_m = Eigen::Vector3d::Zero();  // adjusted − GPS (E, N, U)
+  // The GPS position disagreed with the control datum beyond the threshold
+  // (after the offset): left out of the adjustment, still reported.
+  bool prior_rejected = false;
+  // adjusted + GPS offset − GPS (E, N, U): the prior's residual
+  Eigen::Vector3d d_enu_m = Eigen::Vector3d::Zero();
   double sigma_h_m = 0.0;
   double sigma_v_m = 0.0;
+};
+
+// Camera GPS against a datum fixed by control alone (step 2), before the
+// adjustment: GPS minus the camera centres that the control similarity gives.
+struct GpsVersusControl {
+  bool measured = false;     // false: fewer than 3 control points anchored the datum
+  int cameras = 0;           // with GPS
+  int consistent = 0;        // within the threshold after the offset
+  Eigen::Vector3d offset_enu_m = Eigen::Vector3d::Zero();  // mean over the consistent ones
+  Eigen::Vector3d offset_sigma_m = Eigen::Vector3d::Zero();  // its standard error
+  Eigen::Vector3d rms_after_offset_m = Eigen::Vector3d::Zero();
+  bool significant = false;
+  std::vector<std::string> rejected;  // images whose GPS left the adjustment
 };
 
 struct GeoreferenceReport {
@@ -73,10 +105,12 @@ struct GeoreferenceReport {
   std::string crs_source;  // "--crs", "control file", "UTM zone of the survey centre"
   bool residuals_in_crs_units = true;  // false for a geographic CRS: ENU metres
   Geodetic enu_origin;
+  std::string datum_source;  // what the initial similarity was fitted to
   int helmert_correspondences = 0;
   int helmert_inliers = 0;
   double helmert_rms_m = 0.0;
-  BundleSummary bundle;
+  GpsVersusControl gps_vs_control;
+  BundleSummary bundle;  // bundle.gps_offset_m: the estimated offset
   std::vector<GroundPointResult> control;
   std::vector<GroundPointResult> check;
   AccuracyStats control_stats;

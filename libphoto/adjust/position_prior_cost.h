@@ -37,6 +37,35 @@ class PositionPriorCost final : public ceres::SizedCostFunction<3, 3> {
   Eigen::Vector3d inv_sigma_;
 };
 
+// GPS prior on a camera centre C with a constant offset o shared by all
+// images (GNSS antenna or datum offset): the receiver reads C + o, so
+//   r = ((C + o − P) / σh, …, (U + o_u − P_u) / σv);
+// both Jacobians are diag(1/σh, 1/σh, 1/σv).
+class OffsetPositionPriorCost final : public ceres::SizedCostFunction<3, 3, 3> {
+ public:
+  OffsetPositionPriorCost(const Eigen::Vector3d& prior, double sigma_h_m, double sigma_v_m)
+      : prior_(prior), inv_sigma_(1.0 / sigma_h_m, 1.0 / sigma_h_m, 1.0 / sigma_v_m) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    for (int i = 0; i < 3; ++i) {
+      residuals[i] = (parameters[0][i] + parameters[1][i] - prior_[i]) * inv_sigma_[i];
+    }
+    if (jacobians != nullptr) {
+      for (int b = 0; b < 2; ++b) {
+        if (jacobians[b] == nullptr) continue;
+        Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> j(jacobians[b]);
+        j = inv_sigma_.asDiagonal();
+      }
+    }
+    return true;
+  }
+
+ private:
+  Eigen::Vector3d prior_;
+  Eigen::Vector3d inv_sigma_;
+};
+
 // Prior on one parameter of a block of size n (a camera's focal length):
 // r = (x[index] - prior) / sigma.
 class ParameterPriorCost final : public ceres::CostFunction {

@@ -460,8 +460,10 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
       for (auto& c : report["cameras"]) {
         if (c["name"] == image.name) c.update({{"x", xyz.x()}, {"y", xyz.y()}, {"z", xyz.z()}});
       }
-      if (image.gps_prior) {
-        const Eigen::Vector3d d = image.pose.centre_in_world - image.gps_prior->position;
+      const auto result = std::find_if(georef.cameras.begin(), georef.cameras.end(),
+                                       [&](const CameraResult& c) { return c.name == image.name; });
+      if (result != georef.cameras.end() && result->has_prior) {
+        const Eigen::Vector3d& d = result->d_enu_m;  // after the estimated GPS offset, if any
         csv << "," << d.x() << "," << d.y() << "," << d.z();
       } else {
         csv << ",,,";

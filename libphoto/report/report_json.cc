@@ -111,6 +111,7 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
     cj["name"] = c.name;
     cj["gps_prior"] = c.has_prior;
     if (c.has_prior) {
+      cj["gps_prior_rejected"] = c.prior_rejected;
       cj["de_m"] = c.d_enu_m.x();
       cj["dn_m"] = c.d_enu_m.y();
       cj["du_m"] = c.d_enu_m.z();
@@ -122,7 +123,27 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   j["adjustment"] = BundleSummaryJson(r.bundle, model);
   j["adjustment"]["helmert"] = {{"correspondences", r.helmert_correspondences},
                                 {"inliers", r.helmert_inliers},
-                                {"rms_m", r.helmert_rms_m}};
+                                {"rms_m", r.helmert_rms_m},
+                                {"datum_source", r.datum_source}};
+  auto enu = [](const Eigen::Vector3d& v) {
+    return nlohmann::json{{"e_m", v.x()}, {"n_m", v.y()}, {"u_m", v.z()}};
+  };
+  const GpsVersusControl& versus = r.gps_vs_control;
+  if (versus.measured) {
+    j["gps_vs_control"] = {{"note", "GPS minus the camera centres of the control-only initial fit"},
+                           {"cameras", versus.cameras},
+                           {"consistent", versus.consistent},
+                           {"offset", enu(versus.offset_enu_m)},
+                           {"offset_sigma", enu(versus.offset_sigma_m)},
+                           {"rms_after_offset", enu(versus.rms_after_offset_m)},
+                           {"significant", versus.significant},
+                           {"rejected", versus.rejected}};
+  } else {
+    j["gps_vs_control"] = nullptr;
+  }
+  j["adjustment"]["gps_offset"] = {{"estimated", r.bundle.gps_offset_estimated},
+                                   {"note", "GPS minus camera centre, ENU metres"},
+                                   {"offset", enu(r.bundle.gps_offset_m)}};
   j["warnings"] = r.warnings;
   return j;
 }
