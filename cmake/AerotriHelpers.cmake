@@ -12,11 +12,20 @@ function(aerotri_add_library name)
   target_link_libraries(aerotri_${name} PUBLIC ${ARG_DEPS})
 endfunction()
 
-# aerotri_add_test(<module> <name> SOURCES ... [DEPS ...])
-# One gtest executable per unit; registered in ctest as <module>/<name> so that
-# `ctest -R georef/` runs one module.
+# aerotri_add_test(<module> <name> SOURCES ... [DEPS ...] [TIER unit|pipeline|realdata])
+# One gtest executable per unit; each of its test cases is registered in ctest
+# as <module>/<name>.<Suite>.<Case> (gtest_discover_tests, listed when ctest
+# runs), so `ctest -R georef/` runs one module, cases run in parallel, and a
+# case that calls GTEST_SKIP() is reported as skipped, not passed. TIER
+# becomes the ctest label (default unit): `ctest -L unit` is the fast tier.
 function(aerotri_add_test module name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "TIER;TIMEOUT" "SOURCES;DEPS" ${ARGN})
+  if(NOT ARG_TIER)
+    set(ARG_TIER unit)
+  endif()
+  if(NOT ARG_TIMEOUT)
+    set(ARG_TIMEOUT 300)
+  endif()
   set(target test_${module}_${name})
   add_executable(${target} ${ARG_SOURCES})
   target_link_libraries(${target} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
@@ -24,7 +33,9 @@ function(aerotri_add_test module name)
     AEROTRI_SHARED_DATA="${AEROTRI_SHARED_DATA}"
     AEROTRI_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
     AEROTRI_BINARY_DIR="${PROJECT_BINARY_DIR}")
-  add_test(NAME ${module}/${name} COMMAND ${target})
-  set_tests_properties(${module}/${name} PROPERTIES
-    ENVIRONMENT "AEROTRI_EXE=$<TARGET_FILE:aerotri>")
+  gtest_discover_tests(${target}
+    TEST_PREFIX "${module}/${name}."
+    DISCOVERY_MODE PRE_TEST
+    PROPERTIES LABELS ${ARG_TIER} TIMEOUT ${ARG_TIMEOUT}
+               SKIP_REGULAR_EXPRESSION "\\[  SKIPPED \\]")
 endfunction()

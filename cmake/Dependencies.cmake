@@ -24,4 +24,5 @@ endif()
 
 if(AEROTRI_BUILD_TESTS)
   find_package(GTest REQUIRED)
+  include(GoogleTest)  # gtest_discover_tests
 endif()
