@@ -192,8 +192,9 @@ TEST(Georeferencing, ControlHoldsTheDatumAgainstAGpsHeightOffset) {
   EXPECT_NEAR(report.bundle.gps_offset_m.z(), 50.0, 4.0 * 4.0 / std::sqrt(n));
   EXPECT_NEAR(report.bundle.gps_offset_m.x(), 0.0, 4.0 * 2.0 / std::sqrt(n));
   bool warned = false;
-  for (const std::string& w : report.warnings) warned |= w.find("constant offset") != std::string::npos;
+  for (const Finding& f : report.findings) warned |= f.code == "GPS_CONTROL_OFFSET";
   EXPECT_TRUE(warned);
+  EXPECT_EQ(SurveyStatus(report.findings), "warnings");
   // Focal length within 0.1 % of truth (3000 px), checks at the clean level.
   EXPECT_NEAR(model.cameras[0].params[0], 3000.0, 3.0);
   ASSERT_EQ(report.check_stats.count, 6);

@@ -5,7 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <algorithm>
+#include <functional>
+#include <random>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
@@ -121,6 +126,88 @@ TEST_F(AdjustCommand, InputsAreNeverModified) {
   AdjustArgs args = Args("unused");
   args.output = args.model_dir;
   EXPECT_THROW(RunAdjustInProcess(args), InvalidArgument);
+}
+
+
+// Writes the simulation's GPS CSV with the positions handed out to the
+// images in another order: order[k] is the row whose position image k gets.
+std::string ScrambledGpsCsv(const std::string& path, const std::filesystem::path& out,
+                            const std::function<std::vector<size_t>(size_t)>& order_of) {
+  std::vector<std::string> lines;
+  std::istringstream in(ReadTextFile(path));
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty()) lines.push_back(line);
+  }
+  const std::vector<size_t> order = order_of(lines.size() - 1);
+  std::string csv = lines[0] + "\n";
+  for (size_t k = 1; k < lines.size(); ++k) {
+    const std::string& mine = lines[k];
+    const std::string& other = lines[1 + order[k - 1]];
+    csv += mine.substr(0, mine.find(',')) + other.substr(other.find(',')) + "\n";
+  }
+  WriteTextFileAtomically(out, csv);
+  return out.string();
+}
+
+void ExpectFailedNamingItems(const RunResult& run, const std::string& output, const std::string& code,
+                             const std::string& item_prefix) {
+  EXPECT_EQ(run.code, 1) << run.out;
+  EXPECT_NE(run.out.find("status=failed"), std::string::npos) << run.out;
+  EXPECT_NE(run.err.find("survey failed: " + code), std::string::npos) << run.err;
+  const auto report = nlohmann::json::parse(ReadTextFile(std::filesystem::path(output) / "report.json"));
+  EXPECT_EQ(report["status"], "failed");
+  bool found = false;
+  for (const auto& e : report["errors"]) {
+    if (e["code"] != code) continue;
+    found = true;
+    ASSERT_FALSE(e["items"].empty()) << e.dump();
+    EXPECT_EQ(e["items"][0].get<std::string>().rfind(item_prefix, 0), 0u) << e.dump();
+  }
+  EXPECT_TRUE(found) << report["errors"].dump();
+}
+
+// GPS that does not belong to the model (positions shuffled among the
+// images, as a mixed-up CSV or a wrong registration gives): not a
+// clean-looking survey with exit 0, but status failed, the images named,
+// exit 1.
+TEST_F(AdjustCommand, GpsThatContradictsTheModelFailsTheSurvey) {
+  AdjustArgs args = Args("shuffled");
+  args.gcp.clear();
+  args.gps_csv = ScrambledGpsCsv(args.gps_csv, dir_->path() / "shuffled_gps.csv", [](size_t n) {
+    std::vector<size_t> order(n);
+    for (size_t k = 0; k < n; ++k) order[k] = k;
+    std::mt19937 rng(5);
+    std::shuffle(order.begin(), order.end(), rng);
+    return order;
+  });
+  const RunResult run = RunAdjustInProcess(args);
+  ExpectFailedNamingItems(run, args.output, "GPS_MOSTLY_INCONSISTENT", "IMG_");
+}
+
+// GPS in reverse order: on a lawn-mower block that is the layout turned by
+// 180 degrees, which a similarity fits exactly: GPS and model agree and only
+// the check points can tell. They are 100 m off: failed, naming them.
+TEST_F(AdjustCommand, CheckPointsFarBeyondTheDatumFailTheSurvey) {
+  AdjustArgs args = Args("reversed");
+  args.gcp.clear();
+  args.gps_csv = ScrambledGpsCsv(args.gps_csv, dir_->path() / "reversed_gps.csv", [](size_t n) {
+    std::vector<size_t> order(n);
+    for (size_t k = 0; k < n; ++k) order[k] = n - 1 - k;
+    return order;
+  });
+  const RunResult run = RunAdjustInProcess(args);
+  ExpectFailedNamingItems(run, args.output, "CHECK_POINTS_FAR", "");
+}
+
+// The clean simulation passes every gate.
+TEST_F(AdjustCommand, ACleanSurveyIsOk) {
+  const AdjustArgs args = Args("clean");
+  const RunResult run = RunAdjustInProcess(args);
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto report = nlohmann::json::parse(ReadTextFile(std::filesystem::path(args.output) / "report.json"));
+  EXPECT_EQ(report["status"], "ok") << report["warnings"].dump() << report["errors"].dump();
+  EXPECT_TRUE(report["errors"].empty());
+  EXPECT_NE(run.out.find("status=ok"), std::string::npos);
 }
 
 }  // namespace

@@ -131,8 +131,12 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
 
   GeoreferenceReport report = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
                                                     checks ? &*checks : nullptr, options);
-  report.warnings.insert(report.warnings.begin(), warnings.begin(), warnings.end());
-  for (const std::string& w : report.warnings) ctx.Warn(w);
+  for (auto w = warnings.rbegin(); w != warnings.rend(); ++w) {
+    report.findings.insert(report.findings.begin(), Finding::Warning("INPUT", *w));
+  }
+  for (const Finding& f : report.findings) {
+    ctx.Warn((f.severity == Severity::kError ? "error " : "") + f.code + ": " + f.message);
+  }
 
   WriteColmapText(model, output / "model");
   nlohmann::json json = GeoreferenceReportJson(report, model);
@@ -143,15 +147,22 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   // An RMSE over no points is not a figure: "nan", never a reassuring 0.0000.
   const auto rmse = [](int count, double value) { return count > 0 ? value : std::nan(""); };
   char line[512];
+  const std::string status = SurveyStatus(report.findings);
   std::snprintf(line, sizeof(line),
-                "crs=%s final_rms_px=%.4f control_count=%d control_rmse_3d_m=%.4f "
+                "status=%s crs=%s final_rms_px=%.4f control_count=%d control_rmse_3d_m=%.4f "
                 "check_count=%d check_rmse_h_m=%.4f check_rmse_v_m=%.4f check_rmse_3d_m=%.4f\n",
-                report.crs.c_str(), report.bundle.final_rms_px, report.control_stats.count,
+                status.c_str(), report.crs.c_str(), report.bundle.final_rms_px, report.control_stats.count,
                 rmse(report.control_stats.count, report.control_stats.rmse_3d_m), report.check_stats.count,
                 rmse(report.check_stats.count, report.check_stats.rmse_h_m),
                 rmse(report.check_stats.count, report.check_stats.rmse_z_m),
                 rmse(report.check_stats.count, report.check_stats.rmse_3d_m));
   *ctx.out << line << std::flush;
+  if (status == "failed") {
+    for (const Finding& f : report.findings) {
+      if (f.severity == Severity::kError) ctx.Error("survey failed: " + f.code + ": " + f.message);
+    }
+    return 1;
+  }
   return 0;
 }
 

@@ -99,6 +99,7 @@ int RunSimulate(const SimulateArgs& args, ToolContext& ctx);
 struct RunArgs {
   std::string images_dir;
   std::string output;
+  bool keep_going = false;
   bool force = false;
   int threads = 0;
   std::string gps_altitude = "egm96";

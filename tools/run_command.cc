@@ -30,6 +30,9 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
   }
   cmd->add_option("--output,-o", a->output, "Workspace / output folder")->required();
   cmd->add_flag("--force", a->force, "Redo stages whose product exists (default: resume)");
+  cmd->add_flag("--keep-going", a->keep_going,
+                "Write the cloud and DSM even when the adjustment failed its quality gates (the report "
+                "says failed and the exit code stays 1)");
   cmd->add_option("--threads", a->threads, "Threads (0 = all cores)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--gps-altitude", a->gps_altitude,
                   "Reference of EXIF / CSV GPS altitudes: egm96 (EXIF's 'above sea level') or ellipsoid")
@@ -121,6 +124,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.images_dir = a.images_dir;
   o.workspace = a.output;
   o.force = a.force;
+  o.keep_going = a.keep_going;
   o.num_threads = a.threads;
   o.gps_altitude = a.gps_altitude == "ellipsoid" ? AltitudeReference::kEllipsoid : AltitudeReference::kEgm96;
   o.gps_sigma_h_m = a.gps_sigma_h_m;
@@ -155,7 +159,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   };
   const std::string& s = a.stage;
   if (s == "run") {
-    RunPipeline(o);
+    RunPipeline(o);  // its status is read back from report.json below
   } else if (s == "ingest") {
     RunIngestStage(o);
   } else if (s == "features") {
@@ -194,14 +198,22 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
     const auto& checks = r.value("check_points", nlohmann::json::object());
     char line[512];
     std::snprintf(line, sizeof(line),
-                  "report=%s registered=%d/%d rms_px=%.3f crs=%s check_count=%d check_rmse_h_m=%.4f "
+                  "report=%s status=%s registered=%d/%d rms_px=%.3f crs=%s check_count=%d check_rmse_h_m=%.4f "
                   "check_rmse_v_m=%.4f check_rmse_3d_m=%.4f\n",
-                  path.string().c_str(), images.value("registered", 0), images.value("total", 0),
+                  path.string().c_str(), r.value("status", std::string("unknown")).c_str(),
+                  images.value("registered", 0), images.value("total", 0),
                   r.value("adjustment", nlohmann::json::object()).value("final_rms_px", 0.0),
                   r.contains("crs") && r["crs"].is_string() ? r["crs"].get<std::string>().c_str() : "none",
                   checks.value("count", 0), CheckRmse(checks, "rmse_h_m"), CheckRmse(checks, "rmse_z_m"),
                   CheckRmse(checks, "rmse_3d_m"));
     *ctx.out << line << std::flush;
+    // A failed survey exits non-zero, naming why.
+    if (r.value("status", std::string()) == "failed") {
+      for (const auto& e : r.value("errors", nlohmann::json::array())) {
+        ctx.Error("survey failed: " + e.value("code", std::string()) + ": " + e.value("message", std::string()));
+      }
+      return 1;
+    }
   }
   return 0;
 }

@@ -28,6 +28,10 @@ void ToolContext::Warn(const std::string& line) const {
   *err << "warning: " << line << "\n" << std::flush;
 }
 
+void ToolContext::Error(const std::string& line) const {
+  *err << "error: " << line << "\n" << std::flush;
+}
+
 ProgressCallback ToolContext::Progress(const std::string& stage) const {
   if (quiet) return nullptr;
   std::ostream* stream = err;

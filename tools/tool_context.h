@@ -24,6 +24,8 @@ struct ToolContext {
   void Info(const std::string& line) const;
   // A warning is shown even with --quiet.
   void Warn(const std::string& line) const;
+  // An error line ("error: ..."), shown even with --quiet.
+  void Error(const std::string& line) const;
   // A progress callback for a named stage: draws "stage: 42% message".
   ProgressCallback Progress(const std::string& stage) const;
   double ElapsedS() const {

@@ -44,6 +44,161 @@ void ApplySimilarity(const Similarity& s, SparseModel* model) {
   for (Point& point : model->points) point.position = s.Apply(point.position);
 }
 
+// The adjustment's quality gates (findings.h): convergence, reprojection
+// RMS, GPS and control residuals against their sigmas.
+void ApplyQualityGates(const SparseModel& model, const QualityGates& gates, GeoreferenceReport* report) {
+  const BundleSummary& b = report->bundle;
+  auto fixed = [](double v, int digits) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.*f", digits, v);
+    return std::string(text);
+  };
+  // Images whose own RMS is above the limit, worst first.
+  std::vector<std::string> bad_images;
+  {
+    const std::vector<double> errors = ReprojectionErrors(model);
+    std::vector<double> sum(model.images.size(), 0.0);
+    std::vector<int> count(model.images.size(), 0);
+    for (size_t k = 0; k < errors.size(); ++k) {
+      const Observation& obs = model.observations[k];
+      if (model.points[obs.point].role == PointRole::kCheck || !model.images[obs.image].registered) continue;
+      const double e = std::isfinite(errors[k]) ? errors[k] : 1e6;
+      sum[obs.image] += e * e;
+      ++count[obs.image];
+    }
+    std::vector<std::pair<double, std::string>> rms;
+    for (size_t i = 0; i < model.images.size(); ++i) {
+      if (count[i] == 0) continue;
+      const double r = std::sqrt(sum[i] / count[i]);
+      if (r > gates.max_rms_px) rms.push_back({r, model.images[i].name});
+    }
+    std::sort(rms.rbegin(), rms.rend());
+    for (const auto& [r, name] : rms) bad_images.push_back(name);
+  }
+  if (!b.converged) {
+    report->findings.push_back(Finding::Warning(
+        "ADJUSTMENT_NOT_CONVERGED", "the adjustment stopped before converging (" + b.termination + ")"));
+  }
+  if (b.final_rms_px > gates.max_rms_px) {
+    report->findings.push_back(Finding::Error(
+        "REPROJECTION_RMS_HIGH",
+        "final reprojection RMS " + fixed(b.final_rms_px, 2) + " px is above " + fixed(gates.max_rms_px, 1) +
+            " px: the model and its priors do not agree" +
+            (bad_images.empty() ? std::string() : "; worst images: " + JoinNames(bad_images)),
+        bad_images));
+  } else if (b.final_rms_px > 1.0 && b.final_rms_px > gates.max_rms_growth * b.initial_rms_px) {
+    report->findings.push_back(Finding::Error(
+        "REPROJECTION_RMS_GREW",
+        "the adjustment raised the reprojection RMS from " + fixed(b.initial_rms_px, 2) + " to " +
+            fixed(b.final_rms_px, 2) + " px: the priors pull the model apart",
+        bad_images));
+  }
+  // GPS residuals (after the estimated offset) against their sigmas.
+  std::vector<std::string> gps_bad;
+  int with_gps = 0;
+  for (const CameraResult& c : report->cameras) {
+    if (!c.has_prior || c.prior_rejected) continue;
+    ++with_gps;
+    const double h = c.d_enu_m.head<2>().norm() / c.sigma_h_m;
+    const double v = std::abs(c.d_enu_m.z()) / c.sigma_v_m;
+    if (h > gates.gps_sigma_multiple || v > gates.gps_sigma_multiple) gps_bad.push_back(c.name);
+  }
+  if (!gps_bad.empty()) {
+    const std::string text = std::to_string(gps_bad.size()) + " of " + std::to_string(with_gps) +
+                             " cameras end farther from their GPS than " + fixed(gates.gps_sigma_multiple, 0) +
+                             " sigma: " + JoinNames(gps_bad);
+    if (gps_bad.size() > gates.max_gps_inconsistent_fraction * with_gps) {
+      report->findings.push_back(Finding::Error(
+          "GPS_MOSTLY_INCONSISTENT",
+          text + "; the GPS and the model disagree (wrong registration, GPS in another datum or "
+                 "height reference, or wrong sigmas)",
+          gps_bad));
+    } else {
+      report->findings.push_back(Finding::Warning("GPS_INCONSISTENT", text, gps_bad));
+    }
+  }
+  // Control residuals against their sigmas.
+  std::vector<std::string> control_bad;
+  for (const GroundPointResult& r : report->control) {
+    if (!r.solved) continue;
+    const Point* point = nullptr;
+    for (const Point& p : model.points) {
+      if (p.role == PointRole::kControl && p.name == r.name) point = &p;
+    }
+    if (!point || !point->prior) continue;
+    const double h = r.d_m.head<2>().norm() / point->prior->sigma_h_m;
+    const double v = std::abs(r.d_m.z()) / point->prior->sigma_v_m;
+    if (h > gates.control_sigma_multiple || v > gates.control_sigma_multiple) control_bad.push_back(r.name);
+  }
+  // Check points against what the datum allows: their own survey sigma and
+  // the sigma of what holds the datum (control, else GPS), five times, at
+  // least QualityGates::min_check_threshold_m. GPS and model can agree on a
+  // wrong survey (a layout turned by 180 degrees fits a similarity exactly):
+  // only independent points can tell.
+  {
+    const bool control_datum = report->datum_source.rfind("control", 0) == 0;
+    double datum_h = 0.0, datum_v = 0.0;
+    std::vector<double> gps_h, gps_v;
+    for (const Point& p : model.points) {
+      if (control_datum && p.role == PointRole::kControl && p.prior) {
+        datum_h = std::max(datum_h, p.prior->sigma_h_m);
+        datum_v = std::max(datum_v, p.prior->sigma_v_m);
+      }
+    }
+    if (!control_datum) {
+      for (const CameraResult& c : report->cameras) {
+        if (!c.has_prior) continue;
+        gps_h.push_back(c.sigma_h_m);
+        gps_v.push_back(c.sigma_v_m);
+      }
+      if (!gps_h.empty()) {
+        std::nth_element(gps_h.begin(), gps_h.begin() + gps_h.size() / 2, gps_h.end());
+        std::nth_element(gps_v.begin(), gps_v.begin() + gps_v.size() / 2, gps_v.end());
+        datum_h = gps_h[gps_h.size() / 2];
+        datum_v = gps_v[gps_v.size() / 2];
+      }
+    }
+    std::vector<std::string> far;
+    int solved = 0;
+    for (const GroundPointResult& r : report->check) {
+      if (!r.solved) continue;
+      ++solved;
+      const Point* point = nullptr;
+      for (const Point& p : model.points) {
+        if (p.role == PointRole::kCheck && p.name == r.name) point = &p;
+      }
+      const double sh = point && point->prior ? point->prior->sigma_h_m : 0.0;
+      const double sv = point && point->prior ? point->prior->sigma_v_m : 0.0;
+      const double limit_h = std::max(gates.min_check_threshold_m, gates.check_sigma_multiple * std::hypot(sh, datum_h));
+      const double limit_v = std::max(gates.min_check_threshold_m, gates.check_sigma_multiple * std::hypot(sv, datum_v));
+      if (r.d_m.head<2>().norm() > limit_h || std::abs(r.d_m.z()) > limit_v) far.push_back(r.name);
+    }
+    if (!far.empty()) {
+      const std::string text =
+          std::to_string(far.size()) + " of " + std::to_string(solved) +
+          " check points are farther from their survey than the datum allows (" +
+          fixed(gates.check_sigma_multiple, 0) + " sigma of the check point and of the " +
+          (control_datum ? "control" : "GPS") + "): " + JoinNames(far);
+      if (2 * far.size() > static_cast<size_t>(solved)) {
+        report->findings.push_back(Finding::Error(
+            "CHECK_POINTS_FAR", text + "; the survey is misplaced (GPS in the wrong order or datum, "
+                                       "wrong registration) or the check file is wrong",
+            far));
+      } else {
+        report->findings.push_back(Finding::Warning("CHECK_POINTS_FAR", text + " (blunders?)", far));
+      }
+    }
+  }
+  if (!control_bad.empty()) {
+    report->findings.push_back(Finding::Warning(
+        "CONTROL_RESIDUAL_HIGH",
+        std::to_string(control_bad.size()) + " control points end farther from their survey than " +
+            fixed(gates.control_sigma_multiple, 0) + " sigma (a blunder, a wrong mark, or sigmas "
+            "too small): " + JoinNames(control_bad),
+        control_bad));
+  }
+}
+
 }  // namespace
 
 std::string ToString(GpsOffsetPolicy policy) {
@@ -205,9 +360,11 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     for (const GcpMeasurement& m : s.source->measurements) {
       const auto it = image_by_name.find(m.image);
       if (it == image_by_name.end()) {
-        report.warnings.push_back(
-            (s.role == PointRole::kControl ? control->path : checks->path) + ":" +
-            std::to_string(m.line) + ": image '" + m.image + "' is not in the model; measurement skipped");
+        report.findings.push_back(Finding::Warning(
+            "INPUT", (s.role == PointRole::kControl ? control->path : checks->path) + ":" +
+                         std::to_string(m.line) + ": image '" + m.image +
+                         "' is not in the model; measurement skipped",
+            {s.source->name}));
         continue;
       }
       Observation obs;
@@ -261,14 +418,16 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
                             std::to_string(control_from.size()) + " in the initial similarity)";
       report.helmert_correspondences = static_cast<int>(control_from.size());
       if (fit->num_inliers < static_cast<int>(control_from.size())) {
-        std::string names;
+        std::vector<std::string> names;
         for (size_t k = 0; k < control_points.size(); ++k) {
-          if (!fit->inliers[k]) names += (names.empty() ? "" : ", ") + model->points[control_points[k]].name;
+          if (!fit->inliers[k]) names.push_back(model->points[control_points[k]].name);
         }
-        report.warnings.push_back(std::to_string(control_from.size() - fit->num_inliers) + " of " +
-                                  std::to_string(control_from.size()) +
-                                  " control points disagree with the others by more than " +
-                                  FormatMetres(threshold) + " in the initial fit: " + names);
+        report.findings.push_back(Finding::Warning(
+            "CONTROL_INCONSISTENT",
+            std::to_string(names.size()) + " of " + std::to_string(control_from.size()) +
+                " control points disagree with the others by more than " + FormatMetres(threshold) +
+                " in the initial fit: " + JoinNames(names),
+            names));
       }
     } else {
       fit.reset();
@@ -293,10 +452,18 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
     report.datum_source = control_from.empty() ? "GPS" : "GPS and control points";
     if (fit->num_inliers < static_cast<int>(from.size())) {
-      report.warnings.push_back(std::to_string(from.size() - fit->num_inliers) + " of " +
-                                std::to_string(from.size()) +
-                                " priors disagree with the model by more than " +
-                                FormatMetres(threshold) + " in the initial fit");
+      std::vector<std::string> names;
+      for (size_t k = 0; k < from.size(); ++k) {
+        if (fit->inliers[k]) continue;
+        names.push_back(k < gps_images.size() ? model->images[gps_images[k]].name
+                                              : model->points[control_points[k - gps_images.size()]].name);
+      }
+      report.findings.push_back(Finding::Warning(
+          "PRIORS_INCONSISTENT",
+          std::to_string(names.size()) + " of " + std::to_string(from.size()) +
+              " priors (GPS or control) disagree with the model by more than " + FormatMetres(threshold) +
+              " in the initial fit: " + JoinNames(names),
+          names));
     }
   }
   report.helmert_inliers = fit->num_inliers;
@@ -321,8 +488,9 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     control_only.use_gps_priors = false;
     const BundleSummary control_summary = AdjustBundle(model, control_only);
     if (!control_summary.converged) {
-      report.warnings.push_back("adjustment on control alone (to judge the GPS) did not converge: " +
-                                control_summary.termination);
+      report.findings.push_back(Finding::Warning(
+          "ADJUSTMENT_NOT_CONVERGED",
+          "adjustment on control alone (to judge the GPS) did not converge: " + control_summary.termination));
     }
     versus.measured = true;
     versus.cameras = static_cast<int>(gps_images.size());
@@ -379,23 +547,21 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
                                     FormatMetres(o.z()) + " ± " + FormatMetres(so.z());
     if (versus.significant) {
       const bool estimate = options.gps_offset != GpsOffsetPolicy::kNever;
-      report.warnings.push_back(
+      report.findings.push_back(Finding::Warning(
+          "GPS_CONTROL_OFFSET",
           "GPS and control disagree by a constant offset (GPS minus control datum, " +
           std::to_string(versus.consistent) + " cameras): " + offset_text +
           (estimate ? "; estimated in the adjustment as a GPS offset (antenna or height "
                       "reference: check --gps-altitude)"
-                    : "; not estimated (--gps-offset never): the GPS pulls against the control"));
+                    : "; not estimated (--gps-offset never): the GPS pulls against the control")));
     }
     if (!versus.rejected.empty()) {
-      std::string names;
-      for (size_t k = 0; k < versus.rejected.size() && k < 10; ++k) {
-        names += (k ? ", " : "") + versus.rejected[k];
-      }
-      if (versus.rejected.size() > 10) names += ", ...";
-      report.warnings.push_back(std::to_string(versus.rejected.size()) + " of " +
-                                std::to_string(versus.cameras) +
-                                " GPS positions disagree with the control datum after the offset; "
-                                "left out of the adjustment: " + names);
+      report.findings.push_back(Finding::Warning(
+          "GPS_REJECTED",
+          std::to_string(versus.rejected.size()) + " of " + std::to_string(versus.cameras) +
+              " GPS positions disagree with the control datum after the offset; left out of the "
+              "adjustment: " + JoinNames(versus.rejected),
+          versus.rejected));
     }
   }
 
@@ -405,9 +571,10 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     bundle.estimate_gps_offset = true;
     bundle.initial_gps_offset_m = versus.offset_enu_m;
   } else if (options.gps_offset == GpsOffsetPolicy::kAlways && !gps_images.empty()) {
-    report.warnings.push_back(
+    report.findings.push_back(Finding::Warning(
+        "GPS_OFFSET_NOT_ESTIMATED",
         "GPS offset not estimated: it needs 3 or more non-collinear control points measured in 2 "
-        "or more images each to hold the datum");
+        "or more images each to hold the datum"));
   }
 
   // 4. Bundle adjustment with priors.
@@ -442,6 +609,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
     report.cameras.push_back(c);
   }
+  ApplyQualityGates(*model, options.gates, &report);
   ReportProgress(options.progress, 1.0, "georeferenced");
   return report;
 }

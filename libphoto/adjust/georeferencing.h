@@ -36,6 +36,7 @@
 #include "georef/local_frame.h"
 #include "georef/similarity.h"
 #include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/adjust/findings.h"
 #include "libphoto/base/progress.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/sfm/triangulation.h"
@@ -58,6 +59,7 @@ struct GeoreferenceOptions {
   // least 0.5 m.
   double helmert_inlier_m = 0.0;
   GpsOffsetPolicy gps_offset = GpsOffsetPolicy::kAuto;
+  QualityGates gates;
   BundleOptions bundle;
   ProgressCallback progress;
 };
@@ -116,7 +118,9 @@ struct GeoreferenceReport {
   AccuracyStats control_stats;
   AccuracyStats check_stats;
   std::vector<CameraResult> cameras;
-  std::vector<std::string> warnings;
+  // Warnings and errors with stable codes (findings.h); SurveyStatus() of
+  // them is the survey's status.
+  std::vector<Finding> findings;
 };
 
 // A control or check point against its survey: with triangulate, the point

@@ -23,6 +23,7 @@ void WriteRaster(const Raster& raster, const std::filesystem::path& path,
   std::copy(raster.geotransform.begin(), raster.geotransform.end(), gt);
   ds->SetGeoTransform(gt);
   if (!raster.wkt.empty()) ds->SetProjection(raster.wkt.c_str());
+  for (const auto& [key, value] : options.metadata) ds->SetMetadataItem(key.c_str(), value.c_str());
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetNoDataValue(raster.nodata);
   if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,8 @@ struct RasterWriteOptions {
   bool cog = false;       // Cloud-Optimised GeoTIFF (COG driver)
   bool overviews = true;  // internal overviews (always with COG)
   std::string compress = "DEFLATE";
+  // Dataset metadata items (GDAL_METADATA; gdalinfo lists them).
+  std::map<std::string, std::string> metadata;
 };
 
 void WriteRaster(const Raster& raster, const std::filesystem::path& path,

@@ -62,8 +62,10 @@ double DsmResolution(const PipelineOptions& o, double cloud_resolution) {
   return std::max(0.01, std::round(2.0 * cloud_resolution * 100.0) / 100.0);
 }
 
+// status: the survey's (report.json), written into the GeoTIFF's metadata
+// as AEROTRI_SURVEY_STATUS so that a DSM of a failed survey says so.
 void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double resolution, const PipelineOptions& o,
-              const fs::path& path, json* info) {
+              const std::string& status, const fs::path& path, json* info) {
   DsmOptions d;
   d.resolution_m = resolution;
   d.fill_max_distance_m = o.dsm_fill_m;
@@ -71,6 +73,7 @@ void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double re
   const Raster dsm = RasterizeDsm(xyz, crs.Wkt(), d, &summary);
   RasterWriteOptions w;
   w.cog = o.cog;
+  if (!status.empty()) w.metadata["AEROTRI_SURVEY_STATUS"] = status;
   WriteRaster(dsm, path, w);
   const double cells = static_cast<double>(summary.width) * summary.height;
   *info = {{"file", path.filename().string()},
@@ -183,6 +186,11 @@ bool RunDenseStage(const PipelineOptions& o) {
     Log(o, "warning: dense: the survey is not georeferenced; no cloud or DSM in a CRS is written");
     return false;
   }
+  if (report.value("status", "") == "failed" && !o.keep_going) {
+    throw InvalidArgument((o.workspace / "report.json").string() +
+                          ": the adjustment failed (see its errors); no cloud or DSM is written from it "
+                          "(--keep-going writes them, tagged as failed)");
+  }
   const GeoFrame g = FrameOf(report);
   const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
   IngestView ingest = LoadIngest(o);
@@ -221,7 +229,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   WriteLas(out, las);
   WritePly(out, ply);
   json dsm_info;
-  WriteDsm(out.xyz, g.crs, DsmResolution(o, cloud.resolution_m), o, dsm, &dsm_info);
+  WriteDsm(out.xyz, g.crs, DsmResolution(o, cloud.resolution_m), o, report.value("status", ""), dsm, &dsm_info);
   const json dense = {{"pairs", summary.pairs},
                       {"pairs_failed", summary.pairs_failed},
                       {"depth_points", summary.depth_points},
@@ -275,7 +283,8 @@ void RebuildDsm(const PipelineOptions& o, const fs::path& path) {
   const CrsCloud cloud = ReadLas(o.workspace / "cloud.las");
   if (cloud.xyz.empty()) throw InvalidArgument((o.workspace / "cloud.las").string() + ": no points");
   json info;
-  WriteDsm(cloud.xyz, g.crs, o.dsm_resolution_m > 0 ? o.dsm_resolution_m : 0.1, o, path, &info);
+  WriteDsm(cloud.xyz, g.crs, o.dsm_resolution_m > 0 ? o.dsm_resolution_m : 0.1, o, report.value("status", ""), path,
+           &info);
   Log(o, "dem: " + path.string() + " " + std::to_string(info["width"].get<int>()) + " x " +
              std::to_string(info["height"].get<int>()) + " cells, " +
              std::to_string(100.0 * info["filled_fraction"].get<double>()) + " % with data");

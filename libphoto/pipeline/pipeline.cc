@@ -445,7 +445,10 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     go.progress = StageProgress(o, "georeference");
     GeoreferenceReport georef = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
                                                       checks ? &*checks : nullptr, go);
-    for (const auto& w : georef.warnings) Log(o, "warning: " + w);
+    for (const Finding& f : georef.findings) {
+      Log(o, std::string(f.severity == Severity::kError ? "error: " : "warning: ") + f.code + ": " +
+                 f.message);
+    }
     report = GeoreferenceReportJson(georef, model);
     // Cameras in the output CRS.
     const LocalFrame frame(georef.enu_origin);
@@ -520,6 +523,34 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["camera_groups"] = ingest.raw.at("groups");
   report["ingest_warnings"] = ingest.raw.value("warnings", json::array());
 
+  // The survey's status: the adjustment's findings, photos left out, input
+  // problems met at ingest.
+  {
+    std::vector<Finding> findings;
+    std::vector<std::string> unregistered;
+    for (const json& im : recon.at("images")) {
+      if (!im.at("registered").get<bool>()) unregistered.push_back(im.at("name").get<std::string>());
+    }
+    if (!unregistered.empty()) {
+      findings.push_back(Finding::Warning(
+          "IMAGES_NOT_REGISTERED",
+          std::to_string(unregistered.size()) + " of " + std::to_string(ingest.names.size()) +
+              " photos are not in the model (report images.per_image says why): " + JoinNames(unregistered),
+          unregistered));
+    }
+    for (const auto& w : report["ingest_warnings"]) findings.push_back(Finding::Warning("INPUT", w.get<std::string>()));
+    const auto append = [&](const char* key, Severity severity) {
+      for (const json& f : report.value(key, json::array())) {
+        findings.push_back({severity, f.at("code"), f.at("message"), f.value("items", std::vector<std::string>{})});
+      }
+    };
+    append("warnings", Severity::kWarning);
+    append("errors", Severity::kError);
+    report["status"] = SurveyStatus(findings);
+    report["warnings"] = FindingsJson(findings, Severity::kWarning);
+    report["errors"] = FindingsJson(findings, Severity::kError);
+  }
+
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
   fs::remove_all(o.workspace / "depth");  // depth maps of an earlier model are stale
   // The working-resolution model in ENU feeds dense matching.
@@ -532,14 +563,27 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   return true;
 }
 
-void RunPipeline(const PipelineOptions& o) {
+std::string SurveyStatusOf(const std::filesystem::path& workspace) {
+  const fs::path path = workspace / "report.json";
+  if (!fs::exists(path)) return "";
+  return ReadJson(path, "georeference").value("status", "");
+}
+
+std::string RunPipeline(const PipelineOptions& o) {
   RunIngestStage(o);
   RunFeatureStage(o);
   RunMatchStage(o);
   RunReconstructStage(o);
   RunGeoreferenceStage(o);
-  RunDenseStage(o);
+  const std::string status = SurveyStatusOf(o.workspace);
+  if (status == "failed" && !o.keep_going) {
+    Log(o, "warning: the adjustment failed (report.json errors): no cloud or DSM is written "
+           "(--keep-going writes them, tagged as failed)");
+  } else {
+    RunDenseStage(o);
+  }
   RunReportStage(o);
+  return status;
 }
 
 }  // namespace aerotri

@@ -36,6 +36,8 @@ struct PipelineOptions {
   std::filesystem::path images_dir;  // needed by ingest (and features)
   std::filesystem::path workspace;
   bool force = false;  // redo stages whose product exists
+  // Write the deliverables of a failed adjustment too (tagged as failed).
+  bool keep_going = false;
   int num_threads = 0;
 
   // ingest
@@ -78,8 +80,12 @@ bool RunGeoreferenceStage(const PipelineOptions& options);
 bool RunDenseStage(const PipelineOptions& options);
 bool RunReportStage(const PipelineOptions& options);
 
-// All stages in order.
-void RunPipeline(const PipelineOptions& options);
+// All stages in order; returns the survey's status (report.json "status":
+// ok, warnings, failed). A failed adjustment stops before the dense stage
+// unless options.keep_going; the report stage still runs.
+std::string RunPipeline(const PipelineOptions& options);
+// report.json's status in a workspace, or "" before the georeference stage.
+std::string SurveyStatusOf(const std::filesystem::path& workspace);
 
 // Rebuilds the DSM from OUTPUT/cloud.las at another resolution into path.
 void RebuildDsm(const PipelineOptions& options, const std::filesystem::path& path);

@@ -244,6 +244,28 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
        "svg.chart{width:100%;max-width:720px}svg.map{width:100%;max-width:600px}.warn{color:#a50}"
        "img.dsm{max-width:100%;border:1px solid #ccc}</style></head><body>";
   h << "<h1>aerotri survey report</h1>";
+  {
+    // The status first: a failed survey must not look like any other.
+    const std::string status = r.value("status", std::string("unknown"));
+    const char* colour = status == "ok" ? "#2a7a3a" : status == "warnings" ? "#a06000" : "#b00020";
+    h << "<div style='border:2px solid " << colour << ";border-radius:6px;padding:8px 14px;margin:1em 0'>"
+      << "<b style='color:" << colour << ";font-size:20px'>status: " << Escape(status) << "</b>";
+    const auto& errors = r.value("errors", json::array());
+    if (status == "failed") {
+      h << " &mdash; this survey is not usable as it stands";
+    }
+    if (!errors.empty()) {
+      h << "<ul>";
+      for (const auto& e : errors) {
+        h << "<li style='color:" << colour << "'>" << Escape(e.value("code", "")) << ": "
+          << Escape(e.value("message", "")) << "</li>";
+      }
+      h << "</ul>";
+    }
+    const size_t num_warnings = r.value("warnings", json::array()).size();
+    if (num_warnings > 0) h << "<div>" << num_warnings << " warnings: see the end of this report</div>";
+    h << "</div>";
+  }
   const auto& images = r.value("images", json::object());
   const auto& adj = r.value("adjustment", json::object());
   h << "<div class='cards'>"
@@ -338,10 +360,13 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
       << "</td><td class='warn'>" << Escape(im.value("why_not", "")) << "</td></tr>";
   }
   h << "</table>";
+  // Findings (the warnings already hold the ingest ones) and the check stage's.
   std::vector<std::string> warnings;
-  for (const char* key : {"ingest_warnings", "warnings", "check_warnings"}) {
-    for (const auto& w : r.value(key, json::array())) warnings.push_back(w.get<std::string>());
+  for (const auto& w : r.value("warnings", json::array())) {
+    warnings.push_back(w.is_string() ? w.get<std::string>()
+                                     : w.value("code", "") + ": " + w.value("message", ""));
   }
+  for (const auto& w : r.value("check_warnings", json::array())) warnings.push_back(w.get<std::string>());
   if (!warnings.empty()) {
     h << "<h2>Warnings</h2><ul>";
     for (const auto& w : warnings) h << "<li class='warn'>" << Escape(w) << "</li>";

@@ -85,6 +85,15 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
   return j;
 }
 
+nlohmann::json FindingsJson(const std::vector<Finding>& findings, Severity severity) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const Finding& f : findings) {
+    if (f.severity != severity) continue;
+    out.push_back({{"code", f.code}, {"message", f.message}, {"items", f.items}});
+  }
+  return out;
+}
+
 nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseModel& model) {
   nlohmann::json j;
   j["crs"] = r.crs;
@@ -144,7 +153,9 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   j["adjustment"]["gps_offset"] = {{"estimated", r.bundle.gps_offset_estimated},
                                    {"note", "GPS minus camera centre, ENU metres"},
                                    {"offset", enu(r.bundle.gps_offset_m)}};
-  j["warnings"] = r.warnings;
+  j["status"] = SurveyStatus(r.findings);
+  j["warnings"] = FindingsJson(r.findings, Severity::kWarning);
+  j["errors"] = FindingsJson(r.findings, Severity::kError);
   return j;
 }
 

@@ -1,0 +1,64 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// What a survey's adjustment tells its user beyond the figures: findings
+// (warnings and errors) with a stable code, a sentence and the images or
+// points concerned, and the survey's status derived from them. A survey with
+// an error finding has status "failed": the pipeline does not write its
+// deliverables as if valid and the command exits 1.
+//
+// Codes (stable; report.json "warnings" / "errors"):
+//   ADJUSTMENT_NOT_CONVERGED   warning  solver stopped before convergence
+//   REPROJECTION_RMS_HIGH      error    final RMS above QualityGates::max_rms_px
+//   REPROJECTION_RMS_GREW      error    final RMS a multiple of the initial one
+//   GPS_INCONSISTENT           warning  cameras farther from their GPS than k sigma
+//   GPS_MOSTLY_INCONSISTENT    error    more than half of them
+//   GPS_CONTROL_OFFSET         warning  GPS and control differ by a constant offset
+//   GPS_REJECTED               warning  GPS fixes left out against the control datum
+//   GPS_OFFSET_NOT_ESTIMATED   warning  --gps-offset always without control to hold it
+//   CONTROL_INCONSISTENT       warning  control points left out of the initial fit
+//   CONTROL_RESIDUAL_HIGH      warning  control residuals beyond k sigma
+//   CHECK_POINTS_FAR           warning  check points beyond what the datum allows;
+//                              error    when more than half of them are
+//   PRIORS_INCONSISTENT        warning  priors left out of the initial fit
+//   IMAGES_NOT_REGISTERED      warning  photos left out of the model
+//   INPUT                      warning  a problem with an input file (skipped)
+
+#include <string>
+#include <vector>
+
+namespace aerotri {
+
+enum class Severity { kWarning, kError };
+
+struct Finding {
+  Severity severity = Severity::kWarning;
+  std::string code;
+  std::string message;             // one sentence a surveyor can act on
+  std::vector<std::string> items;  // images or points concerned
+
+  static Finding Warning(std::string code, std::string message, std::vector<std::string> items = {});
+  static Finding Error(std::string code, std::string message, std::vector<std::string> items = {});
+};
+
+// Limits of the adjustment's quality gates.
+struct QualityGates {
+  double max_rms_px = 3.0;          // final reprojection RMS (working pixels)
+  double max_rms_growth = 2.0;      // final / initial RMS, when the final is above 1 px
+  double gps_sigma_multiple = 4.0;  // a camera this many sigma from its GPS is inconsistent
+  double max_gps_inconsistent_fraction = 0.5;  // beyond: an error
+  double control_sigma_multiple = 5.0;
+  // Check points: this many sigma of their survey and of the datum, and at
+  // least min_check_threshold_m (their triangulation from images adds a few
+  // GSD that no sigma here states).
+  double check_sigma_multiple = 5.0;
+  double min_check_threshold_m = 0.1;
+};
+
+// "ok" (no findings), "warnings", or "failed" (any error).
+std::string SurveyStatus(const std::vector<Finding>& findings);
+
+// "name1, name2, ... (and N more)": at most max names.
+std::string JoinNames(const std::vector<std::string>& names, size_t max = 10);
+
+}  // namespace aerotri
