@@ -79,9 +79,13 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
       }
       v[i] = *value;
     }
-    if (v[3] < 0.0 || v[4] < 0.0) {
-      throw ParseError(p, number, "expected pixel coordinates >= 0, got im_x " + cols[3] +
-                                      " im_y " + cols[4]);
+    // The image's outer edge: -0.5 when integers are pixel centres, 0 when
+    // they are pixel corners.
+    const double edge = origin == PixelOrigin::kCentre ? -0.5 : 0.0;
+    if (v[3] < edge || v[4] < edge) {
+      throw ParseError(p, number, std::string("expected pixel coordinates >= ") +
+                                      (edge < 0 ? "-0.5 (the top-left pixel's outer edge)" : "0") +
+                                      ", got im_x " + cols[3] + " im_y " + cols[4]);
     }
     const Eigen::Vector3d xyz(v[0], v[1], v[2]);
     std::string name;
@@ -137,7 +141,7 @@ void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path) {
     for (const GroundPoint& point : file.points) {
       for (const GcpMeasurement& m : point.measurements) {
         out << point.xyz.x() << " " << point.xyz.y() << " " << point.xyz.z() << " "
-            << std::setprecision(8) << m.xy_px.x() + 0.5 << " " << m.xy_px.y() + 0.5 << " "
+            << std::setprecision(8) << m.xy_px.x() << " " << m.xy_px.y() << " "
             << std::setprecision(12) << m.image << " " << point.name;
         if (point.sigma_h_m) out << " sigma_h=" << *point.sigma_h_m;
         if (point.sigma_v_m) out << " sigma_v=" << *point.sigma_v_m;

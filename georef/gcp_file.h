@@ -13,9 +13,12 @@
 // standard deviations as `sigma_h=0.02 sigma_v=0.03` (metres); other extras
 // are ignored. Without a name, lines with identical coordinates are one point.
 //
-// Pixels: ODM, OpenSfM and COLMAP measure from the top-left corner of the
-// image, so the centre of the top-left pixel is (0.5, 0.5); aerotri puts it at
-// (0, 0). PixelOrigin::kCorner (the default) subtracts 0.5 on reading.
+// Pixels: OpenDroneMap reads these files through OpenSfM, whose pixel
+// coordinates put the centre of the top-left pixel at (0, 0) (OpenSfM
+// doc/source/geometry.rst; normalized = (x + 0.5 − w/2) / max(w, h)), as
+// aerotri and OpenCV do: PixelOrigin::kCentre, the default, reads them as
+// they are. COLMAP (and tools that measure from the image's outer corner)
+// put that centre at (0.5, 0.5): PixelOrigin::kCorner subtracts 0.5.
 //
 // Errors: ParseError "file:line: what was expected, got what".
 
@@ -51,9 +54,10 @@ struct GcpFile {
 };
 
 GcpFile ReadGcpFile(const std::filesystem::path& path,
-                    PixelOrigin origin = PixelOrigin::kCorner);
+                    PixelOrigin origin = PixelOrigin::kCentre);
 
-// Writes points back in the same format (corner pixel origin), atomically.
+// Writes points back in the same format (OpenDroneMap's pixel convention,
+// PixelOrigin::kCentre), atomically.
 void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path);
 
 }  // namespace aerotri

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include "libphoto/base/error.h"
@@ -25,7 +26,7 @@ TEST(GcpFile, ReadsOdmFormatWithNamesSigmasAndComments) {
         "384902.84 5150696.35 449.91 100 200.25 IMG_0002.JPG GCP1\n"
         "384950.00 5150700.00 451.00 10 20 IMG_0002.JPG GCP2 some_extra\n"
         "384990.00 5150710.00 452.00 30 40 IMG_0003.JPG\n");
-  const GcpFile file = ReadGcpFile(dir / "gcp_list.txt");
+  const GcpFile file = ReadGcpFile(dir / "gcp_list.txt", PixelOrigin::kCorner);
   EXPECT_EQ(file.crs, "EPSG:32632+5773");
   ASSERT_EQ(file.points.size(), 3u);
   const GroundPoint& g1 = file.points[0];
@@ -40,8 +41,41 @@ TEST(GcpFile, ReadsOdmFormatWithNamesSigmasAndComments) {
   EXPECT_FALSE(file.points[1].sigma_h_m.has_value());
   EXPECT_EQ(file.points[2].measurements[0].image, "IMG_0003.JPG");
 
-  const GcpFile centre = ReadGcpFile(dir / "gcp_list.txt", PixelOrigin::kCentre);
+  // The default is OpenDroneMap's: integers at pixel centres.
+  const GcpFile centre = ReadGcpFile(dir / "gcp_list.txt");
   EXPECT_DOUBLE_EQ(centre.points[0].measurements[0].xy_px.x(), 1024.5);
+}
+
+// OpenDroneMap reads gcp_list.txt through OpenSfM, whose normalised image
+// coordinates are n = (x + 0.5 - w/2) / max(w, h) (OpenSfM
+// features.normalized_image_coordinates). aerotri's pixel p (top-left pixel
+// centre at 0) is the same point when (p - (w - 1)/2) / max(w, h) == n: the
+// default reading must satisfy that for every value; corner origin must
+// satisfy COLMAP's n = (x - w/2) / max(w, h).
+TEST(GcpFile, PixelConventionMatchesOpenSfmAndColmap) {
+  testing::TempDir dir;
+  constexpr int kWidth = 4000, kHeight = 3000;
+  Write(dir / "gcp_list.txt",
+        "EPSG:32632\n"
+        "1 2 3 0 0 a.jpg P\n"
+        "1 2 3 1999.5 1499.5 b.jpg P\n"
+        "1 2 3 3999 2999 c.jpg P\n"
+        "1 2 3 123.25 2048.75 d.jpg P\n");
+  const double s = std::max(kWidth, kHeight);
+  const GcpFile odm = ReadGcpFile(dir / "gcp_list.txt");
+  const GcpFile colmap = ReadGcpFile(dir / "gcp_list.txt", PixelOrigin::kCorner);
+  const double raw[4][2] = {{0, 0}, {1999.5, 1499.5}, {3999, 2999}, {123.25, 2048.75}};
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector2d p = odm.points[0].measurements[k].xy_px;
+    EXPECT_NEAR((p.x() - (kWidth - 1) / 2.0) / s, (raw[k][0] + 0.5 - kWidth / 2.0) / s, 1e-15);
+    EXPECT_NEAR((p.y() - (kHeight - 1) / 2.0) / s, (raw[k][1] + 0.5 - kHeight / 2.0) / s, 1e-15);
+    const Eigen::Vector2d c = colmap.points[0].measurements[k].xy_px;
+    EXPECT_NEAR((c.x() - (kWidth - 1) / 2.0) / s, (raw[k][0] - kWidth / 2.0) / s, 1e-15);
+    EXPECT_NEAR((c.y() - (kHeight - 1) / 2.0) / s, (raw[k][1] - kHeight / 2.0) / s, 1e-15);
+  }
+  // The image centre: (w - 1)/2 in OpenDroneMap's file is the optical centre
+  // of an ideal camera.
+  EXPECT_DOUBLE_EQ(odm.points[0].measurements[1].xy_px.x(), (kWidth - 1) / 2.0);
 }
 
 TEST(GcpFile, WriteThenReadRoundTrips) {
@@ -71,7 +105,7 @@ TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
   const std::vector<Case> cases = {
       {"EPSG:32632\n1 2 3 4 5\n", 2, "expected at least 6 columns"},
       {"EPSG:32632\n1 2 x 4 5 a.jpg\n", 2, "expected a number for geo_z (column 3), got 'x'"},
-      {"EPSG:32632\n\n1 2 3 -4 5 a.jpg\n", 3, "expected pixel coordinates >= 0"},
+      {"EPSG:32632\n\n1 2 3 -4 5 a.jpg\n", 3, "expected pixel coordinates >= -0.5"},
       {"EPSG:32632\n1 2 3 4 5 a.jpg P sigma_h=-1\n", 2, "positive number of metres for sigma_h"},
       {"EPSG:32632\n1 2 3 4 5 a.jpg P\n1 2 4 4 5 b.jpg P\n", 3, "other coordinates here than on line 2"},
       {"1 2 3 4 5 a.jpg\n", 1, "expected a CRS on the first line"},

@@ -51,8 +51,8 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
                   "Control point vertical sigma (metres) when the file gives none")
       ->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin,
-                  "Pixel convention of GCP files: corner (ODM/COLMAP: top-left pixel centre at "
-                  "0.5, 0.5) or centre (at 0, 0)")
+                  "Pixel convention of GCP files: centre (OpenDroneMap / OpenSfM: integers at pixel "
+                  "centres) or corner (COLMAP: top-left pixel centre at 0.5, 0.5)")
       ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
   cmd->add_option("--gps-offset", a->gps_offset,
                   "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "

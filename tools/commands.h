@@ -54,7 +54,7 @@ struct AdjustArgs {
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
   std::string gps_offset = "auto";  // never, auto, always
-  std::string gcp_pixel_origin = "corner";
+  std::string gcp_pixel_origin = "centre";
   std::string refine = "all";
   std::string loss = "huber";
   double loss_scale_px = 2.0;
@@ -111,7 +111,7 @@ struct RunArgs {
   int gps_neighbours = 12;
   std::string gcp;
   std::string checkpoints;
-  std::string gcp_pixel_origin = "corner";
+  std::string gcp_pixel_origin = "centre";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
   std::string gps_offset = "auto";  // never, auto, always

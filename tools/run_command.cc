@@ -49,7 +49,7 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
       ->check(CLI::Range(1, 1000))->capture_default_str();
   cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
   cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format); never used in the adjustment");
-  cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "corner (ODM/COLMAP) or centre")
+  cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "Pixel convention of GCP files: centre (OpenDroneMap / OpenSfM: integers at pixel centres) or corner (COLMAP: top-left pixel centre at 0.5, 0.5)")
       ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
   cmd->add_option("--gcp-sigma-h", a->gcp_sigma_h_m, "Control horizontal sigma (metres) when the file gives none")
       ->check(CLI::PositiveNumber)->capture_default_str();
@@ -113,7 +113,7 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
         "check", "Accuracy of an existing survey against check points: rewrites SURVEY/report.json and report.html");
     cmd->add_option("--survey", a->output, "Survey folder (the output of aerotri run)")->required()->check(CLI::ExistingDirectory);
     cmd->add_option("--checkpoints", a->checkpoints, "Check points (OpenDroneMap gcp_list.txt format)")->required();
-    cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "corner (ODM/COLMAP) or centre")
+    cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "Pixel convention of GCP files: centre (OpenDroneMap / OpenSfM: integers at pixel centres) or corner (COLMAP: top-left pixel centre at 0.5, 0.5)")
         ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
     cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
   }

@@ -53,7 +53,7 @@ struct PipelineOptions {
   // georeference
   std::filesystem::path gcp;          // optional
   std::filesystem::path checkpoints;  // optional
-  PixelOrigin gcp_pixel_origin = PixelOrigin::kCorner;
+  PixelOrigin gcp_pixel_origin = PixelOrigin::kCentre;  // OpenDroneMap's
   GeoreferenceOptions georef;
 
   // dense

@@ -5,7 +5,8 @@
 // truth:
 //   images/IMG_*.JPG     rendered photos, EXIF GPS (noisy), focal length
 //   gcp_list.txt         control points (output CRS, survey noise), target
-//                        centres as measured in the images (corner origin)
+//                        centres as measured in the images (OpenDroneMap
+//                        convention: integers at pixel centres)
 //   checkpoints.txt      check points, same format
 //   gps.csv              the same noisy GPS as the EXIF (name,lat,lon,alt)
 //   model/               the tie-point model in an arbitrary frame and scale
