@@ -61,7 +61,9 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
   cmd->add_option("--crs", a->crs,
                   "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
                   "file's CRS, else the UTM zone of the survey centre");
-  cmd->add_option("--refine", a->refine, "Intrinsics to refine: none, focal, focal,pp, all, or a list")
+  cmd->add_option("--refine", a->refine,
+                  "Intrinsics to refine: auto (chosen from the block's geometry: relief, flying-height "
+                  "variation, oblique views, precise GPS heights), none, focal, focal,pp, all, or a list")
       ->capture_default_str();
   cmd->add_option("--loss", a->loss, "Robust loss on reprojection residuals")
       ->check(CLI::IsMember({"none", "huber", "cauchy", "tukey"}))->capture_default_str();
@@ -94,7 +96,8 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   options.gps_offset = *ParseGpsOffsetPolicy(args.gps_offset);
   options.progress = ctx.Progress("adjust");
   BundleOptions& bundle = options.bundle;
-  ApplyAdjustmentOptions(args.loss, args.loss_scale_px, args.refine, &bundle);
+  options.auto_refine = args.refine == "auto";
+  ApplyAdjustmentOptions(args.loss, args.loss_scale_px, options.auto_refine ? "all" : args.refine, &bundle);
   bundle.outlier_threshold_px = args.outlier_threshold_px;
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;

@@ -55,7 +55,7 @@ struct AdjustArgs {
   double gcp_sigma_v_m = 0.03;
   std::string gps_offset = "auto";  // never, auto, always
   std::string gcp_pixel_origin = "centre";
-  std::string refine = "all";
+  std::string refine = "auto";
   std::string loss = "huber";
   double loss_scale_px = 2.0;
   double outlier_threshold_px = 4.0;
@@ -99,6 +99,7 @@ int RunSimulate(const SimulateArgs& args, ToolContext& ctx);
 struct RunArgs {
   std::string images_dir;
   std::string output;
+  std::string refine = "auto";  // intrinsics refined in the georeferenced adjustment
   bool keep_going = false;
   bool force = false;
   int threads = 0;

@@ -59,6 +59,10 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
                   "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
                   "control points: auto (when the control shows a significant one), always or never")
       ->check(CLI::IsMember({"never", "auto", "always"}))->capture_default_str();
+  cmd->add_option("--refine", a->refine,
+                  "Intrinsics refined in the georeferenced adjustment: auto (chosen from the block's "
+                  "geometry), none, focal, focal,pp, all, or a list (f,cx,cy,k1,k2,k3,p1,p2)")
+      ->capture_default_str();
   cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
   cmd->add_option("--dense-resolution", a->dense_resolution_m,
                   "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
@@ -145,8 +149,8 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.georef.gcp_sigma_h_m = a.gcp_sigma_h_m;
   o.georef.gcp_sigma_v_m = a.gcp_sigma_v_m;
   o.georef.gps_offset = *ParseGpsOffsetPolicy(a.gps_offset);
-  o.georef.bundle.loss = LossType::kHuber;
-  o.georef.bundle.loss_scale_px = 1.0;
+  o.georef.auto_refine = a.refine == "auto";
+  ApplyAdjustmentOptions("huber", 1.0, o.georef.auto_refine ? "all" : a.refine, &o.georef.bundle);
   o.georef.bundle.outlier_threshold_px = 4.0;
   o.georef.bundle.min_images_to_refine_intrinsics = 3;
   o.progress = [&ctx](const std::string& stage) { return ctx.Progress(stage); };

@@ -135,7 +135,103 @@ struct RoundResult {
   int skipped_points = 0;
   bool offset_estimated = false;
   double setup_s = 0.0;
+  std::vector<IntrinsicsPrecision> precision;
+  std::string covariance_note;
 };
+
+// The a-priori covariance of every refined intrinsics block and its
+// correlation with the camera heights (BundleOptions::
+// compute_intrinsics_covariance).
+void IntrinsicsCovariance(ceres::Problem* problem, SparseModel* model, const std::vector<char>& image_used,
+                          const std::vector<std::vector<int>>& refined, const BundleOptions& options,
+                          RoundResult* result) {
+  if (problem->NumResiduals() > options.max_covariance_residuals) {
+    result->covariance_note = "not computed: " + std::to_string(problem->NumResiduals()) +
+                              " residuals, above the limit of " + std::to_string(options.max_covariance_residuals);
+    return;
+  }
+  std::vector<std::pair<const double*, const double*>> blocks;
+  for (size_t c = 0; c < model->cameras.size(); ++c) {
+    double* params = model->cameras[c].params.data();
+    if (refined[c].empty() || !problem->HasParameterBlock(params) || problem->IsParameterBlockConstant(params)) {
+      continue;
+    }
+    blocks.push_back({params, params});
+    for (size_t i = 0; i < model->images.size(); ++i) {
+      double* centre = model->images[i].pose.centre_in_world.data();
+      if (image_used[i] && model->images[i].camera == static_cast<int>(c) && problem->HasParameterBlock(centre) &&
+          !problem->IsParameterBlockConstant(centre)) {
+        blocks.push_back({params, centre});
+        blocks.push_back({centre, centre});
+      }
+    }
+  }
+  if (blocks.empty()) {
+    result->covariance_note = "no refined intrinsics in blocks of their own";
+    return;
+  }
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::SPARSE_QR;
+  co.num_threads = options.num_threads > 0 ? options.num_threads
+                                           : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  co.apply_loss_function = true;
+  ceres::Covariance covariance(co);
+  if (!covariance.Compute(blocks, problem)) {
+    result->covariance_note = "not computed: the normal equations are rank deficient (datum or intrinsics "
+                              "not determined)";
+    return;
+  }
+  for (size_t c = 0; c < model->cameras.size(); ++c) {
+    const Camera& camera = model->cameras[c];
+    const double* params = camera.params.data();
+    if (refined[c].empty() || !problem->HasParameterBlock(params) || problem->IsParameterBlockConstant(params)) {
+      continue;
+    }
+    const int n = static_cast<int>(refined[c].size());
+    std::vector<double> cov(n * n);
+    if (!covariance.GetCovarianceBlockInTangentSpace(params, params, cov.data())) continue;
+    IntrinsicsPrecision p;
+    p.camera = static_cast<int>(c);
+    for (int a = 0; a < n; ++a) {
+      p.names.push_back(camera.info().param_names[refined[c][a]]);
+      p.values.push_back(camera.params[refined[c][a]]);
+      p.sigmas.push_back(std::sqrt(std::max(0.0, cov[a * n + a])));
+    }
+    p.correlation.assign(n, std::vector<double>(n, 0.0));
+    for (int a = 0; a < n; ++a) {
+      for (int b = 0; b < n; ++b) {
+        const double d = p.sigmas[a] * p.sigmas[b];
+        p.correlation[a][b] = d > 0.0 ? cov[a * n + b] / d : 0.0;
+      }
+    }
+    // f against each camera height.
+    const auto f_it = std::find(refined[c].begin(), refined[c].end(), camera.info().focal_params.at(0));
+    if (f_it != refined[c].end()) {
+      const int fi = static_cast<int>(f_it - refined[c].begin());
+      std::vector<double> rho;
+      for (size_t i = 0; i < model->images.size(); ++i) {
+        const double* centre = model->images[i].pose.centre_in_world.data();
+        if (!image_used[i] || model->images[i].camera != static_cast<int>(c) ||
+            !problem->HasParameterBlock(centre) || problem->IsParameterBlockConstant(centre)) {
+          continue;
+        }
+        std::vector<double> cross(n * 3), cc(9);
+        if (!covariance.GetCovarianceBlockInTangentSpace(params, centre, cross.data()) ||
+            !covariance.GetCovarianceBlockInTangentSpace(centre, centre, cc.data())) {
+          continue;
+        }
+        const double d = p.sigmas[fi] * std::sqrt(std::max(0.0, cc[8]));
+        if (d > 0.0) rho.push_back(std::abs(cross[fi * 3 + 2]) / d);
+      }
+      if (!rho.empty()) {
+        p.focal_height_correlation_max = *std::max_element(rho.begin(), rho.end());
+        std::nth_element(rho.begin(), rho.begin() + rho.size() / 2, rho.end());
+        p.focal_height_correlation_median = rho[rho.size() / 2];
+      }
+    }
+    result->precision.push_back(p);
+  }
+}
 
 // The datum of a model without enough priors: image A's pose (held fixed in
 // the solve) and the length of the baseline from A to the farthest image B.
@@ -526,6 +622,14 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
 
   if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
+    if (options.compute_intrinsics_covariance) {
+      const bool any_merged = std::any_of(merged.begin(), merged.end(), [](const auto& m) { return !m.empty(); });
+      if (any_merged) {
+        result.covariance_note = "not computed: images with a camera group of their own";
+      } else {
+        IntrinsicsCovariance(&problem, model, image_used, refined, options, &result);
+      }
+    }
   }
 
   for (size_t i = 0; i < num_images; ++i) {
@@ -727,6 +831,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   for (int round = 0;; ++round) {
     RoundResult result = SolveOnce(model, options, round, gps_offset.data());
     summary.gps_offset_estimated = result.offset_estimated;
+    summary.intrinsics_precision = result.precision;
+    summary.covariance_note = result.covariance_note;
     summary.gps_offset_m = gps_offset;
     if (round == 0) {
       summary.initial_cost = result.ceres.initial_cost;

@@ -110,6 +110,14 @@ struct BundleOptions {
   int weak_image_min_observations = 20;
   double weak_point_min_angle_deg = 2.0;
 
+  // After the solve, the a-priori covariance of each camera group's refined
+  // intrinsics and of their correlation with the camera heights (Ceres
+  // Covariance, SPARSE_QR over the whole Jacobian): BundleSummary::
+  // intrinsics_precision. Skipped (with the reason) above
+  // max_covariance_residuals residuals, where the QR would cost minutes.
+  bool compute_intrinsics_covariance = false;
+  int max_covariance_residuals = 3000000;
+
   std::function<void(const IterationReport&)> iteration_callback;
   // Keep Ceres' FullReport() of every solve in BundleSummary::solver_report.
   bool keep_solver_report = false;
@@ -122,6 +130,20 @@ struct BundleOptions {
 struct WeakImage {
   std::string name;
   int observations = 0;
+};
+
+// Precision of one camera group's refined intrinsics, from (JᵀJ)⁻¹ with the
+// a-priori weights (image sigma, prior sigmas): what the geometry determines.
+struct IntrinsicsPrecision {
+  int camera = -1;                  // index in SparseModel::cameras
+  std::vector<std::string> names;   // refined parameters, in order
+  std::vector<double> values;
+  std::vector<double> sigmas;       // a-priori standard deviations (px or unitless)
+  std::vector<std::vector<double>> correlation;  // names x names
+  // Correlation of the focal length with the heights of the group's cameras:
+  // median and largest |ρ(f, Z_i)| (0 when f is not refined).
+  double focal_height_correlation_median = 0.0;
+  double focal_height_correlation_max = 0.0;
 };
 
 struct BundleSummary {
@@ -160,6 +182,9 @@ struct BundleSummary {
   double total_time_s = 0.0;
 
   std::string solver_report;  // Ceres' full reports, when asked for
+
+  std::vector<IntrinsicsPrecision> intrinsics_precision;
+  std::string covariance_note;  // why intrinsics_precision is empty, when asked for
 
   std::vector<WeakImage> weak_images;
   int weak_points_small_angle = 0;

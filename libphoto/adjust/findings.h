@@ -21,6 +21,8 @@
 //   CHECK_POINTS_FAR           warning  check points beyond what the datum allows;
 //                              error    when more than half of them are
 //   PRIORS_INCONSISTENT        warning  priors left out of the initial fit
+//   DOME                       warning  vertical residuals domed across the block
+//   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model
 //   INPUT                      warning  a problem with an input file (skipped)
 
@@ -53,6 +55,8 @@ struct QualityGates {
   // GSD that no sigma here states).
   double check_sigma_multiple = 5.0;
   double min_check_threshold_m = 0.1;
+  // A significant dome (|t| >= 3) larger than this many GSD is a warning.
+  double max_dome_gsd = 2.0;
 };
 
 // "ok" (no findings), "warnings", or "failed" (any error).

@@ -189,6 +189,18 @@ void ApplyQualityGates(const SparseModel& model, const QualityGates& gates, Geor
       }
     }
   }
+  // A dome (or bowl) across the block beyond 2 GSD.
+  const DomeTest& dome = report->dome;
+  if (dome.significant && report->geometry.gsd_m > 0.0 &&
+      std::abs(dome.amplitude_m) > gates.max_dome_gsd * report->geometry.gsd_m) {
+    report->findings.push_back(Finding::Warning(
+        "DOME", "the vertical residuals of the " + dome.source + " form a " +
+                    (dome.amplitude_m > 0 ? "bowl" : "dome") + " across the block: edge minus centre " +
+                    fixed(dome.amplitude_m, 3) + " ± " + fixed(dome.amplitude_sigma_m, 3) + " m (" +
+                    fixed(std::abs(dome.amplitude_m) / report->geometry.gsd_m, 1) +
+                    " GSD); radial distortion is likely mis-estimated (a nadir block at one altitude: add "
+                    "oblique photos or control across the block)"));
+  }
   if (!control_bad.empty()) {
     report->findings.push_back(Finding::Warning(
         "CONTROL_RESIDUAL_HIGH",
@@ -476,6 +488,13 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
 
+  // The block's geometry (reported); what is refined is decided from the
+  // intrinsics' precision after the adjustment (step 4).
+  report.geometry = MeasureBlockGeometry(*model);
+  report.refinement_auto = options.auto_refine;
+  BundleOptions bundle = options.bundle;
+  if (options.auto_refine) bundle.refine_intrinsics = IntrinsicsRefinement::kAll;
+
   GpsVersusControl& versus = report.gps_vs_control;
   if (control_datum && !gps_images.empty()) {
     // GPS minus the camera centres of an adjustment held by the control
@@ -484,7 +503,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     // model still carries the reconstruction's intrinsics, and a focal
     // length 1 % off moves every camera height by 1 % of the flying height.
     ReportProgress(options.progress, 0.15, "adjustment on control alone: GPS against control");
-    BundleOptions control_only = options.bundle;
+    BundleOptions control_only = bundle;
     control_only.use_gps_priors = false;
     const BundleSummary control_summary = AdjustBundle(model, control_only);
     if (!control_summary.converged) {
@@ -565,7 +584,6 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
 
-  BundleOptions bundle = options.bundle;
   if (versus.measured && options.gps_offset != GpsOffsetPolicy::kNever &&
       (versus.significant || options.gps_offset == GpsOffsetPolicy::kAlways)) {
     bundle.estimate_gps_offset = true;
@@ -579,7 +597,65 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
 
   // 4. Bundle adjustment with priors.
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
+  bundle.compute_intrinsics_covariance = true;
+  const SparseModel before_final = *model;
   report.bundle = AdjustBundle(model, bundle);
+  report.refined = report.bundle.refined_intrinsics;
+  report.refinement_reason = options.auto_refine ? "every intrinsic refined: the block determines them"
+                                                 : "as asked (--refine)";
+  // A focal length the block does not determine: held at its prior (auto),
+  // or flagged.
+  {
+    std::vector<std::string> weak;
+    std::string detail;
+    bool all_have_priors = true;
+    for (const IntrinsicsPrecision& p : report.bundle.intrinsics_precision) {
+      const Camera& camera = model->cameras[p.camera];
+      const std::string f_name = camera.info().param_names[camera.info().focal_params.at(0)];
+      const auto it = std::find(p.names.begin(), p.names.end(), f_name);
+      if (it == p.names.end()) continue;
+      const size_t k = static_cast<size_t>(it - p.names.begin());
+      const double rel = p.sigmas[k] / p.values[k];
+      if (rel <= options.weak_focal_rel) continue;
+      weak.push_back("camera " + std::to_string(camera.id));
+      char text[160];
+      std::snprintf(text, sizeof text, "sigma f %.2f %% of f, correlation with the camera heights %.2f (median)",
+                    100.0 * rel, p.focal_height_correlation_median);
+      detail = text;
+      const bool has_prior = static_cast<size_t>(p.camera) < bundle.focal_prior_px.size() &&
+                             bundle.focal_prior_px[p.camera] > 0.0;
+      all_have_priors &= has_prior;
+    }
+    const std::string flat = report.geometry.nadir_flat_single_altitude
+                                 ? " (nadir photos of flat ground at one altitude: f and the flying height are one "
+                                   "unknown)"
+                                 : "";
+    if (!weak.empty() && options.auto_refine && all_have_priors) {
+      // Hold f at the prior of every group and solve again from the same start.
+      *model = before_final;
+      for (size_t c = 0; c < model->cameras.size() && c < bundle.focal_prior_px.size(); ++c) {
+        if (bundle.focal_prior_px[c] > 0.0) {
+          model->cameras[c].params[model->cameras[c].info().focal_params.at(0)] = bundle.focal_prior_px[c];
+        }
+      }
+      bundle.refine_intrinsics = IntrinsicsRefinement::kList;
+      bundle.refine_params = {"cx", "cy", "k1", "k2", "k3", "p1", "p2"};
+      report.bundle = AdjustBundle(model, bundle);
+      report.refined = report.bundle.refined_intrinsics;
+      report.refinement_reason = "focal length held at its EXIF / certificate value: the block does not determine "
+                                 "it (" + detail + ")" + flat + "; the rest refined";
+      report.findings.push_back(Finding::Warning("FOCAL_HELD", report.refinement_reason, weak));
+    } else if (!weak.empty()) {
+      report.refinement_reason += "; the focal length is weakly determined (" + detail + ")" + flat;
+      report.findings.push_back(Finding::Warning(
+          "FOCAL_WEAKLY_DETERMINED",
+          "the focal length is refined but the block does not determine it (" + detail + ")" + flat +
+              (options.auto_refine ? "; no EXIF or certificate focal length to hold it at"
+                                   : "; --refine auto holds it at its EXIF value") +
+              ": camera heights and the DSM's scale follow it",
+          weak));
+    }
+  }
   for (auto& [index, prior] : rejected_gps) model->images[index].gps_prior = prior;
 
   // 5. Check points from the adjusted cameras alone; residuals in the output CRS.
@@ -595,6 +671,47 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   }
   report.control_stats = AccuracyStats::FromResiduals(control_d);
   report.check_stats = AccuracyStats::FromResiduals(check_d);
+
+  // Dome test: check points' vertical residuals, else the cameras' against GPS.
+  {
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    int n = 0;
+    for (const Image& image : model->images) {
+      if (!image.registered) continue;
+      centre += image.pose.centre_in_world.head<2>();
+      ++n;
+    }
+    if (n > 0) centre /= n;
+    double radius = 0.0;
+    for (const Image& image : model->images) {
+      if (image.registered) radius = std::max(radius, (image.pose.centre_in_world.head<2>() - centre).norm());
+    }
+    std::vector<Eigen::Vector2d> xy;
+    std::vector<double> dz;
+    for (size_t k = 0; k < report.check.size(); ++k) {
+      if (!report.check[k].solved) continue;
+      for (const SurveyedPoint& s : surveyed) {
+        if (s.role == PointRole::kCheck && s.source->name == report.check[k].name) {
+          xy.push_back(model->points[s.point_index].position.head<2>());
+          dz.push_back(report.check[k].d_m.z());
+        }
+      }
+    }
+    std::string source = "check points";
+    if (xy.size() < 4) {
+      xy.clear();
+      dz.clear();
+      source = "GPS";
+      for (const Image& image : model->images) {
+        if (!image.registered || !image.gps_prior || rejected_gps.count(static_cast<int>(&image - model->images.data()))) {
+          continue;
+        }
+        xy.push_back(image.pose.centre_in_world.head<2>());
+        dz.push_back((image.pose.centre_in_world + report.bundle.gps_offset_m - image.gps_prior->position).z());
+      }
+    }
+    report.dome = FitDome(xy, dz, centre, radius, source);
+  }
 
   for (const Image& image : model->images) {
     if (!image.registered) continue;

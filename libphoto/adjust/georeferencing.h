@@ -35,6 +35,7 @@
 #include "georef/gcp_file.h"
 #include "georef/local_frame.h"
 #include "georef/similarity.h"
+#include "libphoto/adjust/block_geometry.h"
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/adjust/findings.h"
 #include "libphoto/base/progress.h"
@@ -60,6 +61,14 @@ struct GeoreferenceOptions {
   double helmert_inlier_m = 0.0;
   GpsOffsetPolicy gps_offset = GpsOffsetPolicy::kAuto;
   QualityGates gates;
+  // true: every intrinsic is refined where the block determines it: a focal
+  // length whose a-priori sigma exceeds weak_focal_rel of its value (the
+  // block knows it no better than an EXIF value does) is held at its EXIF /
+  // certificate prior (bundle.focal_prior_px) and the block solved again;
+  // without a prior it stays refined and is flagged. false:
+  // bundle.refine_intrinsics as given, a weak focal length flagged.
+  bool auto_refine = true;
+  double weak_focal_rel = 0.01;
   BundleOptions bundle;
   ProgressCallback progress;
 };
@@ -112,6 +121,11 @@ struct GeoreferenceReport {
   int helmert_inliers = 0;
   double helmert_rms_m = 0.0;
   GpsVersusControl gps_vs_control;
+  BlockGeometry geometry;         // after the initial similarity
+  bool refinement_auto = true;    // refinement chosen (true) or given by the user
+  std::string refined;            // what the final adjustment refined
+  std::string refinement_reason;  // why
+  DomeTest dome;
   BundleSummary bundle;  // bundle.gps_offset_m: the estimated offset
   std::vector<GroundPointResult> control;
   std::vector<GroundPointResult> check;

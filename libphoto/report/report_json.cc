@@ -150,6 +150,47 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   } else {
     j["gps_vs_control"] = nullptr;
   }
+  const BlockGeometry& g = r.geometry;
+  j["adjustment"]["block_geometry"] = {{"images", g.images},
+                                       {"median_depth_m", g.median_depth_m},
+                                       {"relief_ratio", g.relief_ratio},
+                                       {"height_variation_ratio", g.height_variation_ratio},
+                                       {"tilt_p90_deg", g.tilt_p90_deg},
+                                       {"gsd_m", g.gsd_m},
+                                       {"gps_sigma_v_m", g.gps_sigma_v_m}};
+  j["adjustment"]["block_geometry"]["nadir_flat_single_altitude"] = g.nadir_flat_single_altitude;
+  j["adjustment"]["refinement"] = {{"policy", r.refinement_auto ? "auto" : "given (--refine)"},
+                                   {"refined", r.refined},
+                                   {"reason", r.refinement_reason}};
+  j["adjustment"]["intrinsics_precision"] = nlohmann::json::array();
+  for (const IntrinsicsPrecision& p : r.bundle.intrinsics_precision) {
+    nlohmann::json pj;
+    pj["camera"] = model.cameras[p.camera].id;
+    pj["note"] = "a-priori standard deviations and correlations ((J^T J)^-1 with the stated sigmas)";
+    for (size_t k = 0; k < p.names.size(); ++k) pj["sigma"][p.names[k]] = p.sigmas[k];
+    pj["correlation"] = {{"params", p.names}, {"matrix", p.correlation}};
+    pj["focal_height_correlation"] = {{"median", p.focal_height_correlation_median},
+                                      {"max", p.focal_height_correlation_max}};
+    nlohmann::json high = nlohmann::json::array();
+    for (size_t a = 0; a < p.names.size(); ++a) {
+      for (size_t b = a + 1; b < p.names.size(); ++b) {
+        if (std::abs(p.correlation[a][b]) > 0.9) {
+          high.push_back({{"pair", p.names[a] + "-" + p.names[b]}, {"rho", p.correlation[a][b]}});
+        }
+      }
+    }
+    pj["high_correlations"] = high;
+    j["adjustment"]["intrinsics_precision"].push_back(pj);
+  }
+  if (!r.bundle.covariance_note.empty()) j["adjustment"]["intrinsics_precision_note"] = r.bundle.covariance_note;
+  j["adjustment"]["dome"] = {{"source", r.dome.source},
+                             {"points", r.dome.points},
+                             {"radius_m", r.dome.radius_m},
+                             {"amplitude_m", r.dome.amplitude_m},
+                             {"amplitude_sigma_m", r.dome.amplitude_sigma_m},
+                             {"t", r.dome.t},
+                             {"significant", r.dome.significant},
+                             {"note", "vertical residual at the block's edge minus at its centre (dz = a + b x + c y + amplitude r^2 / R^2)"}};
   j["adjustment"]["gps_offset"] = {{"estimated", r.bundle.gps_offset_estimated},
                                    {"note", "GPS minus camera centre, ENU metres"},
                                    {"offset", enu(r.bundle.gps_offset_m)}};

@@ -1,0 +1,64 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// The geometry of a photo block as far as self-calibration and accuracy
+// depend on it:
+//
+//  * the signals of a weak block (MeasureBlockGeometry). On nadir photos of
+//    flat ground flown at one altitude the image scale is f / H: focal length
+//    and flying height are one unknown, and the principal point is one with
+//    the cameras' horizontal position (Δc ≈ ΔX f / H). Terrain relief (depth
+//    varying within each image), flying-height variation and oblique views
+//    separate them. These are reported; what the adjustment refines is
+//    decided from the intrinsics' measured precision (bundle covariance).
+//  * a dome test (FitDome): vertical residuals of independent points
+//    regressed on squared radial distance from the block centre, the
+//    classic symptom of a wrong radial distortion on a nadir block (James and
+//    Robson 2014, "Mitigating systematic error in topographic models derived
+//    from UAV and ground-based image networks").
+//
+// Frames: the model in a metric ENU frame (after the initial similarity);
+// ratios are unitless, lengths in metres.
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "libphoto/model/sparse_model.h"
+
+namespace aerotri {
+
+struct BlockGeometry {
+  int images = 0;                     // registered
+  double median_depth_m = 0.0;        // camera-to-ground distance (median over images)
+  double relief_ratio = 0.0;          // median over images of std(depth) / median(depth)
+  double height_variation_ratio = 0.0;  // std of camera heights / median depth
+  double tilt_p90_deg = 0.0;          // 90th percentile of optical axes' angle from nadir
+  double gsd_m = 0.0;                 // median depth / focal length
+  double gps_sigma_v_m = 0.0;         // median vertical sigma of the GPS priors (0: none)
+  // Nadir photos of flat ground at one altitude: relief and flying-height
+  // variation under 5 % of the flying height, views within 15 deg of nadir.
+  bool nadir_flat_single_altitude = false;
+};
+
+// Measures a model in a metric, up-is-z frame (tie points only).
+BlockGeometry MeasureBlockGeometry(const SparseModel& model);
+
+struct DomeTest {
+  std::string source;       // "check points", "GPS", or "" when too few points
+  int points = 0;
+  double radius_m = 0.0;    // of the block (farthest camera from its centre)
+  // dz = a + b x + c y + amplitude r² / R² (the plane takes the datum's
+  // shift and tilt): the block's edge minus its centre (m).
+  double amplitude_m = 0.0;
+  double amplitude_sigma_m = 0.0;
+  double t = 0.0;           // amplitude / its sigma
+  bool significant = false;  // |t| >= 3
+};
+
+// xy: horizontal positions (E, N) of the points, dz their vertical residuals;
+// centre and radius_m: the block's. Needs 6 points or more.
+DomeTest FitDome(const std::vector<Eigen::Vector2d>& xy, const std::vector<double>& dz,
+                 const Eigen::Vector2d& centre, double radius_m, const std::string& source);
+
+}  // namespace aerotri

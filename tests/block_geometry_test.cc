@@ -1,0 +1,141 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Block geometry, the dome test and the refinement policy on synthetic blocks
+// with known truth (46.5 N, 7.5 E; 4000 x 3000 px, f 3000 px, 80 m flying
+// height: GSD 2.7 cm).
+#include "libphoto/adjust/block_geometry.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/simulate/synthetic_georef.h"
+#include "tests/test_util.h"
+
+namespace aerotri {
+namespace {
+
+SyntheticSurveyOptions Block(std::uint32_t seed, double relief_m, double attitude_deg) {
+  SyntheticSurveyOptions o;
+  o.seed = seed;
+  o.area_width_m = 200.0;
+  o.area_height_m = 150.0;
+  o.num_tie_points = 1500;
+  o.relief_m = relief_m;
+  o.attitude_sigma_deg = attitude_deg;
+  return o;
+}
+
+bool HasFinding(const GeoreferenceReport& r, const std::string& code) {
+  for (const Finding& f : r.findings) {
+    if (f.code == code) return true;
+  }
+  return false;
+}
+
+TEST(BlockGeometry, TellsAFlatNadirBlockFromOneWithRelief) {
+  const SyntheticSurvey flat = MakeSyntheticSurvey(Block(1, 0.0, 0.3));
+  const BlockGeometry g = MeasureBlockGeometry(flat.truth);
+  EXPECT_TRUE(g.nadir_flat_single_altitude);
+  EXPECT_LT(g.relief_ratio, 0.02);
+  EXPECT_LT(g.tilt_p90_deg, 2.0);
+  // 80 m above mean ground with a 3000 px focal length.
+  EXPECT_NEAR(g.median_depth_m, 80.0, 2.0);
+  EXPECT_NEAR(g.gsd_m, 80.0 / 3000.0, 0.002);
+
+  const SyntheticSurvey hilly = MakeSyntheticSurvey(Block(1, 40.0, 0.3));
+  const BlockGeometry h = MeasureBlockGeometry(hilly.truth);
+  EXPECT_GT(h.relief_ratio, 0.05);
+  EXPECT_FALSE(h.nadir_flat_single_altitude);
+}
+
+// dz = a + amplitude r² / R² plus noise: the fit recovers the amplitude
+// within 3 of its own sigmas, and that sigma is consistent with the noise.
+TEST(DomeTest, RecoversAnInjectedDomeAndFindsNoneWhereThereIsNone) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-100.0, 100.0);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  const double radius = 100.0 * std::sqrt(2.0);
+  std::vector<Eigen::Vector2d> xy;
+  std::vector<double> domed, flat;
+  for (int k = 0; k < 40; ++k) {
+    xy.emplace_back(u(rng), u(rng));
+    const double s = xy.back().squaredNorm() / (radius * radius);
+    flat.push_back(0.05 + noise(rng));
+    domed.push_back(0.05 - 0.30 * s + noise(rng));
+  }
+  const DomeTest d = FitDome(xy, domed, Eigen::Vector2d::Zero(), radius, "check points");
+  EXPECT_EQ(d.points, 40);
+  EXPECT_NEAR(d.amplitude_m, -0.30, 3.0 * d.amplitude_sigma_m);
+  EXPECT_GT(d.amplitude_sigma_m, 0.003);  // ~0.02 / sqrt(40) / spread of s
+  EXPECT_LT(d.amplitude_sigma_m, 0.03);
+  EXPECT_TRUE(d.significant);
+  const DomeTest none = FitDome(xy, flat, Eigen::Vector2d::Zero(), radius, "check points");
+  EXPECT_NEAR(none.amplitude_m, 0.0, 3.0 * none.amplitude_sigma_m);
+  EXPECT_FALSE(none.significant);
+  // Too few points: no test.
+  const DomeTest few = FitDome({xy.begin(), xy.begin() + 3}, {0, 0, 0}, Eigen::Vector2d::Zero(), radius, "GPS");
+  EXPECT_TRUE(few.source.empty());
+}
+
+// A flat nadir block at one altitude with GPS alone does not determine the
+// focal length: the policy holds it at the EXIF value and says so; refined
+// as asked, it is flagged. The a-priori sigma is what says it.
+TEST(RefinementPolicy, HoldsAFocalLengthTheBlockCannotDetermine) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(Block(41, 0.0, 0.3), {});
+  GeoreferenceOptions options;
+  options.output_crs = "EPSG:32632";
+  options.bundle.loss = LossType::kHuber;
+  options.bundle.loss_scale_px = 2.0;
+  const double exif_focal = 3000.0 * 1.004;  // an EXIF value 0.4 % off
+  options.bundle.focal_prior_px = {exif_focal};
+
+  SparseModel model = scene.tie_model;
+  model.cameras[0].params[0] *= 1.01;
+  const GeoreferenceReport held = GeoreferenceAndAdjust(&model, scene.gps, nullptr, &scene.checks, options);
+  EXPECT_TRUE(held.geometry.nadir_flat_single_altitude);
+  EXPECT_TRUE(HasFinding(held, "FOCAL_HELD")) << held.refinement_reason;
+  EXPECT_DOUBLE_EQ(model.cameras[0].params[0], exif_focal);
+  EXPECT_EQ(held.refined, "cx,cy,k1,k2,k3,p1,p2");
+
+  GeoreferenceOptions asked = options;
+  asked.auto_refine = false;
+  asked.bundle.refine_intrinsics = IntrinsicsRefinement::kAll;
+  SparseModel free_model = scene.tie_model;
+  free_model.cameras[0].params[0] *= 1.01;
+  const GeoreferenceReport free = GeoreferenceAndAdjust(&free_model, scene.gps, nullptr, &scene.checks, asked);
+  EXPECT_TRUE(HasFinding(free, "FOCAL_WEAKLY_DETERMINED"));
+  ASSERT_FALSE(free.bundle.intrinsics_precision.empty());
+  EXPECT_GT(free.bundle.intrinsics_precision[0].sigmas[0] / 3000.0, 0.01);
+}
+
+// Where relief determines f, everything is refined, and the a-priori sigma
+// of f is honest: the error is within 4 of them, and the sigma is a fraction
+// of a percent, not a rubber stamp.
+TEST(RefinementPolicy, RefinesEverythingWhereReliefDeterminesIt) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(Block(42, 30.0, 2.0), {});
+  GeoreferenceOptions options;
+  options.output_crs = "EPSG:32632";
+  options.bundle.loss = LossType::kHuber;
+  options.bundle.loss_scale_px = 2.0;
+  options.bundle.focal_prior_px = {3000.0 * 1.02};
+  SparseModel model = scene.tie_model;
+  model.cameras[0].params[0] *= 1.02;
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, options);
+  EXPECT_EQ(r.refined, "all") << r.refinement_reason;
+  EXPECT_FALSE(HasFinding(r, "FOCAL_HELD"));
+  ASSERT_EQ(r.bundle.intrinsics_precision.size(), 1u);
+  const IntrinsicsPrecision& p = r.bundle.intrinsics_precision[0];
+  ASSERT_EQ(p.names[0], "f");
+  EXPECT_GT(p.sigmas[0], 0.3);    // px: 0.01 %
+  EXPECT_LT(p.sigmas[0], 30.0);   // px: 1 %
+  EXPECT_LT(std::abs(model.cameras[0].params[0] - 3000.0), 4.0 * p.sigmas[0]);
+  // A correlation matrix: unit diagonal, symmetric.
+  for (size_t a = 0; a < p.names.size(); ++a) {
+    EXPECT_NEAR(p.correlation[a][a], 1.0, 1e-9);
+    for (size_t b = 0; b < p.names.size(); ++b) EXPECT_NEAR(p.correlation[a][b], p.correlation[b][a], 1e-9);
+  }
+}
+
+}  // namespace
+}  // namespace aerotri
