@@ -24,7 +24,9 @@ std::vector<std::string> SplitWhitespace(const std::string& line) {
 std::optional<double> ParseNumber(const std::string& token) {
   double value = 0.0;
   const char* begin = token.data();
-  const char* end = begin + token.size();
+  // A leading '+' (surveyors' exports write "+384944.8"); from_chars refuses it.
+  if (token.size() > 1 && token[0] == '+' && token[1] != '-' && token[1] != '+') ++begin;
+  const char* end = token.data() + token.size();
   const auto [next, ec] = std::from_chars(begin, end, value);
   if (ec != std::errc() || next != end || !std::isfinite(value)) return std::nullopt;
   return value;
@@ -40,7 +42,13 @@ std::string Trim(const std::string& s) {
 }  // namespace
 
 GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
-  const std::string text = ReadTextFile(path);
+  std::string text = ReadTextFile(path);
+  // A UTF-8 byte-order mark (spreadsheet exports) is not part of the CRS.
+  if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
+  // Old Mac line endings (CR alone) end lines too; CR LF stays one ending.
+  for (size_t k = 0; k < text.size(); ++k) {
+    if (text[k] == '\r' && (k + 1 == text.size() || text[k + 1] != '\n')) text[k] = '\n';
+  }
   const std::string p = path.string();
   GcpFile file;
   file.path = p;

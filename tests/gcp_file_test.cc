@@ -126,5 +126,30 @@ TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
   EXPECT_THROW(ReadGcpFile(dir / "absent.txt"), IoError);
 }
 
+
+// Files as spreadsheets and old tools write them: a UTF-8 byte-order mark,
+// CR-only or CR LF line endings, numbers with a leading '+'.
+TEST(GcpFile, ReadsBomCrOnlyAndPlusSigns) {
+  testing::TempDir dir;
+  const std::string body = "EPSG:32632\r+384944.8 5150695.5 +510.5 602.9 704.8 IMG_0008.JPG GCP1\r"
+                           "384950.0 5150700.0 511.0 10 20 IMG_0009.JPG GCP2\r";
+  Write(dir / "bom_cr.txt", "\xEF\xBB\xBF" + body);
+  const GcpFile f = ReadGcpFile(dir / "bom_cr.txt");
+  EXPECT_EQ(f.crs, "EPSG:32632");
+  ASSERT_EQ(f.points.size(), 2u);
+  EXPECT_DOUBLE_EQ(f.points[0].xyz.x(), 384944.8);
+  EXPECT_DOUBLE_EQ(f.points[0].xyz.z(), 510.5);
+  EXPECT_EQ(f.points[1].measurements[0].line, 3);
+  std::string crlf = body;
+  for (size_t k = 0; (k = crlf.find('\r', k)) != std::string::npos; k += 2) crlf.insert(k + 1, "\n");
+  Write(dir / "crlf.txt", crlf);
+  const GcpFile g = ReadGcpFile(dir / "crlf.txt");
+  ASSERT_EQ(g.points.size(), 2u);
+  EXPECT_EQ(g.points[1].measurements[0].line, 3);
+  // A sign alone, or two, is still not a number.
+  Write(dir / "bad.txt", "EPSG:32632\n+-5 1 2 3 4 a.jpg\n");
+  EXPECT_THROW(ReadGcpFile(dir / "bad.txt"), ParseError);
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -83,6 +83,10 @@ int RunBal(const BalArgs& args, ToolContext& ctx) {
            std::to_string(model.observations.size()) + " observations (" +
            std::to_string(ctx.ElapsedS()).substr(0, 5) + " s)");
 
+  if (model.images.size() < 2) {
+    throw InvalidArgument(args.problem + ": nothing to adjust: " + std::to_string(model.images.size()) +
+                          " camera (a bundle adjustment needs at least 2 cameras seeing common points)");
+  }
   const BundleSummary summary = AdjustBundle(&model, options);
   if (args.solver_report) *ctx.err << summary.solver_report << std::flush;
   if (!args.output.empty()) {
@@ -98,6 +102,9 @@ int RunBal(const BalArgs& args, ToolContext& ctx) {
                 summary.initial_cost, summary.final_cost, summary.final_rms_px,
                 summary.iterations, ctx.ElapsedS());
   out << last << std::flush;
+  if (summary.termination.rfind("FAILURE", 0) == 0) {
+    throw InvalidArgument(args.problem + ": the solver failed: " + summary.termination);
+  }
   return 0;
 }
 

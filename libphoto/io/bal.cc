@@ -24,6 +24,9 @@ Eigen::Matrix3d RotationFromAngleAxis(const Eigen::Vector3d& w) {
 }  // namespace
 
 SparseModel ReadBalProblem(const std::filesystem::path& path) {
+  if (std::filesystem::is_directory(path)) {
+    throw IoError(path.string(), "is a folder, expected a BAL problem file (.txt or .txt.bz2)");
+  }
   const std::string text = ReadMaybeCompressedFile(path);
   TextScanner in(text, path.string());
 
@@ -37,6 +40,20 @@ SparseModel ReadBalProblem(const std::filesystem::path& path) {
                      "expected positive counts 'num_cameras num_points num_observations', got " +
                          std::to_string(num_cameras) + " " + std::to_string(num_points) + " " +
                          std::to_string(num_observations));
+  }
+
+  // Counts against the bytes that hold them, before any allocation: an
+  // observation takes at least 8 characters ("c p x y" and separators), a
+  // camera 18 (9 numbers), a point 6 (3 numbers).
+  // (Small files go on to the line-by-line errors, which say more.)
+  const double needed = 8.0 * num_observations + 18.0 * num_cameras + 6.0 * num_points;
+  if (needed > static_cast<double>(text.size()) && needed > 1e6) {
+    throw ParseError(path.string(), 1,
+                     "the header announces " + std::to_string(num_cameras) + " cameras, " +
+                         std::to_string(num_points) + " points and " + std::to_string(num_observations) +
+                         " observations, which need at least " + std::to_string(static_cast<long long>(needed)) +
+                         " characters; the file has " + std::to_string(text.size()) +
+                         " (truncated, or a wrong header)");
   }
 
   SparseModel model;

@@ -206,4 +206,31 @@ std::vector<PairMatches> ReadMatches(const std::filesystem::path& path) {
   return out;
 }
 
+void ValidateMatches(const std::vector<PairMatches>& matches, const std::vector<ImageFeatures>& features,
+                     const std::filesystem::path& path) {
+  const int n = static_cast<int>(features.size());
+  const std::string fix = ": the file does not belong to these features (stale after a features rerun, or "
+                          "corrupt); rerun the match stage (aerotri match --force)";
+  for (size_t k = 0; k < matches.size(); ++k) {
+    const PairMatches& m = matches[k];
+    if (m.i < 0 || m.i >= n || m.j < 0 || m.j >= n || m.i == m.j) {
+      throw ParseError(path.string(), 0,
+                       "pair " + std::to_string(k) + " joins images " + std::to_string(m.i) + " and " +
+                           std::to_string(m.j) + ", expected two different indices in [0, " +
+                           std::to_string(n) + ")" + fix);
+    }
+    const int ni = static_cast<int>(features[m.i].keypoints.size());
+    const int nj = static_cast<int>(features[m.j].keypoints.size());
+    for (const auto& in : m.inliers) {
+      if (in[0] < 0 || in[0] >= ni || in[1] < 0 || in[1] >= nj) {
+        throw ParseError(path.string(), 0,
+                         "pair " + std::to_string(k) + " (images " + std::to_string(m.i) + ", " +
+                             std::to_string(m.j) + ") refers to features " + std::to_string(in[0]) + " and " +
+                             std::to_string(in[1]) + " but the images have " + std::to_string(ni) + " and " +
+                             std::to_string(nj) + fix);
+      }
+    }
+  }
+}
+
 }  // namespace aerotri

@@ -57,6 +57,13 @@ std::vector<PairMatches> MatchPairs(const std::vector<ImageFeatures>& features,
                                     const MatchOptions& options, const ProgressCallback& progress);
 
 void WriteMatches(const std::vector<PairMatches>& matches, const std::filesystem::path& path);
+// Throws ParseError for a missing, truncated or foreign file.
 std::vector<PairMatches> ReadMatches(const std::filesystem::path& path);
+// Checks every pair's image indices and every inlier's feature indices
+// against the features they refer to (a matches.bin older than a features
+// rerun, or bit-flipped, would otherwise be read out of bounds). Throws
+// ParseError naming path, the pair and the index, and what to rerun.
+void ValidateMatches(const std::vector<PairMatches>& matches, const std::vector<ImageFeatures>& features,
+                     const std::filesystem::path& path);
 
 }  // namespace aerotri

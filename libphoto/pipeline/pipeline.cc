@@ -217,6 +217,15 @@ bool RunFeatureStage(const PipelineOptions& o) {
   }
   const auto start = Clock::now();
   fs::create_directories(o.workspace / "features");
+  // New features invalidate the matches (they index the old keypoints) and
+  // what was built from them: those stages rerun.
+  if (fs::exists(o.workspace / "matches.bin")) {
+    Log(o, "features: re-extracted, so matches.bin and reconstruction.json are stale: removed (the match and "
+           "reconstruct stages rerun)");
+    fs::remove(o.workspace / "matches.bin");
+    fs::remove(o.workspace / "matches.json");
+    fs::remove(o.workspace / "reconstruction.json");
+  }
   ProgressCallback progress = StageProgress(o, "features");
   std::atomic<size_t> done{0};
   std::mutex mutex;
@@ -312,6 +321,13 @@ bool RunReconstructStage(const PipelineOptions& o) {
   IngestView ingest = LoadIngest(o);
   const std::vector<ImageFeatures> features = LoadFeatures(o, &ingest);
   const std::vector<PairMatches> matches = ReadMatches(o.workspace / "matches.bin");
+  // A new model makes the georeferenced survey built on the old one stale.
+  if (fs::exists(o.workspace / "report.json")) {
+    Log(o, "reconstruct: a new model: the earlier georeference (report.json, sparse/) is removed and reruns");
+    fs::remove(o.workspace / "report.json");
+    fs::remove_all(o.workspace / "sparse");
+  }
+  ValidateMatches(matches, features, o.workspace / "matches.bin");
   std::vector<int> camera_of_image;
   for (size_t i = 0; i < ingest.names.size(); ++i) camera_of_image.push_back(std::max(0, ingest.group[i]));
   MapperOptions mo = o.mapper;
@@ -553,6 +569,9 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
 
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
   fs::remove_all(o.workspace / "depth");  // depth maps of an earlier model are stale
+  for (const char* stale : {"cloud.las", "cloud.ply", "dsm.tif", "dense.json", "report.html"}) {
+    fs::remove(o.workspace / stale);  // so are the deliverables: the dense stage reruns
+  }
   // The working-resolution model in ENU feeds dense matching.
   WriteColmapText(model, o.workspace / "georeferenced");
   RecordTiming(o, "georeference", std::chrono::duration<double>(Clock::now() - start).count());
