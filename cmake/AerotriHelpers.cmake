@@ -18,8 +18,11 @@ endfunction()
 # runs), so `ctest -R georef/` runs one module, cases run in parallel, and a
 # case that calls GTEST_SKIP() is reported as skipped, not passed. TIER
 # becomes the ctest label (default unit): `ctest -L unit` is the fast tier.
+# WHOLE registers the executable as one ctest entry instead: for suites whose
+# cases share expensive state in one process (a rendered survey and its
+# workspace); a skip anywhere marks the whole entry skipped.
 function(aerotri_add_test module name)
-  cmake_parse_arguments(ARG "" "TIER;TIMEOUT" "SOURCES;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "WHOLE" "TIER;TIMEOUT" "SOURCES;DEPS" ${ARGN})
   if(NOT ARG_TIER)
     set(ARG_TIER unit)
   endif()
@@ -33,9 +36,17 @@ function(aerotri_add_test module name)
     AEROTRI_SHARED_DATA="${AEROTRI_SHARED_DATA}"
     AEROTRI_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
     AEROTRI_BINARY_DIR="${PROJECT_BINARY_DIR}")
+  # "[  SKIPPED ]" as gtest prints it, brackets as character classes.
+  set(skipped "[[]  SKIPPED []]")
+  if(ARG_WHOLE)
+    add_test(NAME ${module}/${name} COMMAND ${target})
+    set_tests_properties(${module}/${name} PROPERTIES LABELS ${ARG_TIER} TIMEOUT ${ARG_TIMEOUT}
+                         SKIP_REGULAR_EXPRESSION "${skipped}")
+    return()
+  endif()
   gtest_discover_tests(${target}
     TEST_PREFIX "${module}/${name}."
     DISCOVERY_MODE PRE_TEST
     PROPERTIES LABELS ${ARG_TIER} TIMEOUT ${ARG_TIMEOUT}
-               SKIP_REGULAR_EXPRESSION "\\[  SKIPPED \\]")
+               SKIP_REGULAR_EXPRESSION "${skipped}")
 endfunction()

@@ -270,5 +270,44 @@ TEST_F(Pipeline, GpsAloneKeepsCamerasWithinTheGpsNoise) {
   EXPECT_GT(std::sqrt(sum_h / n + sum_v / n), 0.01);
 }
 
+
+// A stage whose recorded options or inputs differ from the current ones
+// reruns and says why; with the same ones it is done already.
+TEST_F(Pipeline, ChangedOptionsRerunTheirStage) {
+  PipelineOptions base = Options("ws_gps");
+  RunPipeline(base);
+  PipelineOptions o = Options("ws_rerun");
+  fs::create_directories(o.workspace);
+  for (const char* item : {"ingest.json", "matches.bin", "matches.json", "reconstruction.json"}) {
+    fs::copy_file(base.workspace / item, o.workspace / item, fs::copy_options::overwrite_existing);
+  }
+  for (const char* dir : {"features", "reconstruction"}) {
+    fs::copy(base.workspace / dir, o.workspace / dir, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  }
+  std::vector<std::string> log;
+  o.log = [&log](const std::string& line) { log.push_back(line); };
+  EXPECT_FALSE(RunIngestStage(o));  // same options: ingest.json stands
+  EXPECT_TRUE(RunGeoreferenceStage(o));
+  EXPECT_FALSE(RunGeoreferenceStage(o));
+  // Another output CRS: the georeference reruns and says what changed.
+  o.georef.output_crs = "EPSG:32632+5773";
+  log.clear();
+  EXPECT_TRUE(RunGeoreferenceStage(o));
+  bool said = false;
+  for (const auto& line : log) said |= line.find("crs: \"\" -> \"EPSG:32632+5773\"") != std::string::npos;
+  EXPECT_TRUE(said);
+  EXPECT_EQ(nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"))["crs"], "EPSG:32632+5773");
+  // Another GPS height reference: ingest reruns, and so does the georeference
+  // (its input changed), which then finds the GPS 50 m from where it was.
+  o.gps_altitude = AltitudeReference::kEllipsoid;
+  EXPECT_TRUE(RunIngestStage(o));
+  EXPECT_TRUE(RunGeoreferenceStage(o));
+  // The dense stage: once, then again only when its options change.
+  EXPECT_TRUE(RunDenseStage(o));
+  EXPECT_FALSE(RunDenseStage(o));
+  o.dsm_fill_m = 0.5;
+  EXPECT_TRUE(RunDenseStage(o));
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -175,12 +175,21 @@ json Coverage(const SparseModel& model, const Raster& dsm, const GeoFrame& g) {
 
 bool RunDenseStage(const PipelineOptions& o) {
   const fs::path las = o.workspace / "cloud.las", ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
+  bool rerun = o.force;
   if (fs::exists(las) && fs::exists(ply) && fs::exists(dsm) && !o.force) {
-    Log(o, "dense: done already (" + las.string() + ")");
-    return false;
+    const std::string changed = FingerprintChanges(
+        fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense").value("options", json())
+                                               : json(),
+        DenseFingerprint(o));
+    if (changed.empty()) {
+      Log(o, "dense: done already (" + las.string() + ")");
+      return false;
+    }
+    Log(o, "dense: options changed (" + changed + "): rerunning");
+    rerun = true;
   }
   const auto start = Clock::now();
-  if (o.force) fs::remove_all(o.workspace / "depth");
+  if (rerun) fs::remove_all(o.workspace / "depth");
   json report = ReadJson(o.workspace / "report.json", "georeference");
   if (!report.value("georeferenced", false)) {
     Log(o, "warning: dense: the survey is not georeferenced; no cloud or DSM in a CRS is written");
@@ -237,7 +246,8 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"resolution_m", cloud.resolution_m},
                       {"min_views", d.min_views},
                       {"tiles", summary.tiles},
-                      {"dsm", dsm_info}};
+                      {"dsm", dsm_info},
+                      {"options", DenseFingerprint(o)}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
   Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud.resolution_m) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +

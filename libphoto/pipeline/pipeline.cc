@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <set>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <mutex>
@@ -35,8 +36,13 @@ using Clock = std::chrono::steady_clock;
 bool RunIngestStage(const PipelineOptions& o) {
   const fs::path out = o.workspace / "ingest.json";
   if (fs::exists(out) && !o.force) {
-    Log(o, "ingest: done already (" + out.string() + ")");
-    return false;
+    const std::string changed =
+        FingerprintChanges(ReadJson(out, "ingest").value("options", json()), IngestFingerprint(o));
+    if (changed.empty()) {
+      Log(o, "ingest: done already (" + out.string() + ")");
+      return false;
+    }
+    Log(o, "ingest: options changed since " + out.string() + " (" + changed + "): rerunning");
   }
   const auto start = Clock::now();
   if (!fs::is_directory(o.images_dir)) {
@@ -192,6 +198,7 @@ bool RunIngestStage(const PipelineOptions& o) {
   }
   json doc;
   doc["images_dir"] = fs::absolute(o.images_dir).string();
+  doc["options"] = IngestFingerprint(o);
   doc["working_max_dimension"] = o.features.max_dimension;
   doc["images"] = images;
   doc["groups"] = groups;
@@ -422,8 +429,14 @@ SparseModel ToFullResolution(const SparseModel& model, const IngestView& ingest)
 bool RunGeoreferenceStage(const PipelineOptions& o) {
   const fs::path report_path = o.workspace / "report.json";
   if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") && !o.force) {
-    Log(o, "georeference: done already (" + report_path.string() + ")");
-    return false;
+    const std::string changed = FingerprintChanges(
+        ReadJson(report_path, "georeference").value("georeference_options", json()), GeoreferenceFingerprint(o));
+    if (changed.empty()) {
+      Log(o, "georeference: done already (" + report_path.string() + ")");
+      return false;
+    }
+    Log(o, "georeference: options or inputs changed since " + report_path.string() + " (" + changed +
+               "): rerunning, and the dense stage after it");
   }
   const auto start = Clock::now();
   IngestView ingest = LoadIngest(o);
@@ -536,6 +549,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
                           {"verified_pairs", m.value("verified_pairs", 0)},
                           {"per_image", m.value("images", json::array())}};
   }
+  report["georeference_options"] = GeoreferenceFingerprint(o);
   report["camera_groups"] = ingest.raw.at("groups");
   report["ingest_warnings"] = ingest.raw.value("warnings", json::array());
 
@@ -588,7 +602,66 @@ std::string SurveyStatusOf(const std::filesystem::path& workspace) {
   return ReadJson(path, "georeference").value("status", "");
 }
 
+void ValidateInputs(const PipelineOptions& o) {
+  if (!o.images_dir.empty() && !fs::is_directory(o.images_dir)) {
+    throw IoError(o.images_dir.string(), "not a folder of images");
+  }
+  if (!o.georef.output_crs.empty()) Crs::FromString(o.georef.output_crs);  // CrsError names it
+  if (!o.gps_csv.empty()) ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
+  // Control and check files: readable, their CRS known to PROJ, their images
+  // in the folder (a name that is not is a warning: that line is skipped).
+  std::set<std::string> photos;
+  if (!o.images_dir.empty()) {
+    for (const auto& entry : fs::directory_iterator(o.images_dir)) photos.insert(entry.path().filename().string());
+  }
+  for (const fs::path& path : {o.gcp, o.checkpoints}) {
+    if (path.empty()) continue;
+    const GcpFile file = ReadGcpFile(path, o.gcp_pixel_origin);
+    try {
+      Crs::FromString(file.crs);
+    } catch (const CrsError& e) {
+      throw ParseError(path.string(), 1, std::string("the CRS line is not a CRS PROJ knows: ") + e.what());
+    }
+    if (photos.empty()) continue;
+    std::set<std::string> unknown;
+    for (const GroundPoint& p : file.points) {
+      for (const GcpMeasurement& m : p.measurements) {
+        if (!photos.count(m.image)) unknown.insert(m.image);
+      }
+    }
+    if (!unknown.empty()) {
+      std::string names;
+      for (const auto& n : unknown) names += (names.empty() ? "" : ", ") + n;
+      Log(o, "warning: " + path.string() + ": images not in " + o.images_dir.string() +
+                 " (their measurements are skipped): " + names);
+    }
+  }
+  // The workspace: writable, and room for it (about 40 times the photos'
+  // size with the dense stage's depth maps; the sample survey used 861 MB
+  // for 3.9 MB of photos at full resolution).
+  fs::create_directories(o.workspace);
+  const fs::path probe = o.workspace / ".aerotri_write_test";
+  {
+    std::ofstream out(probe);
+    if (!out || !(out << "ok")) throw IoError(o.workspace.string(), "cannot write in the output folder");
+  }
+  fs::remove(probe);
+  std::uintmax_t photo_bytes = 0;
+  if (!o.images_dir.empty()) {
+    for (const auto& entry : fs::directory_iterator(o.images_dir)) {
+      if (entry.is_regular_file()) photo_bytes += entry.file_size();
+    }
+  }
+  const fs::space_info space = fs::space(o.workspace);
+  if (photo_bytes > 0 && space.available < 40 * photo_bytes) {
+    Log(o, "warning: " + o.workspace.string() + " has " + std::to_string(space.available >> 20) +
+               " MB free; a survey of " + std::to_string(photo_bytes >> 20) + " MB of photos may need up to " +
+               std::to_string((40 * photo_bytes) >> 20) + " MB");
+  }
+}
+
 std::string RunPipeline(const PipelineOptions& o) {
+  ValidateInputs(o);
   RunIngestStage(o);
   RunFeatureStage(o);
   RunMatchStage(o);

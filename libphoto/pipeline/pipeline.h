@@ -80,7 +80,13 @@ bool RunGeoreferenceStage(const PipelineOptions& options);
 bool RunDenseStage(const PipelineOptions& options);
 bool RunReportStage(const PipelineOptions& options);
 
-// All stages in order; returns the survey's status (report.json "status":
+// Checks every input before the first heavy stage: the output CRS, the GPS
+// CSV, control and check files (format, CRS, image names: unknown ones are
+// a warning), the workspace (writable; free space against the photos'
+// size, a warning). Throws the input's own error naming file and line.
+void ValidateInputs(const PipelineOptions& options);
+
+// All stages in order (after ValidateInputs); returns the survey's status (report.json "status":
 // ok, warnings, failed). A failed adjustment stops before the dense stage
 // unless options.keep_going; the report stage still runs.
 std::string RunPipeline(const PipelineOptions& options);

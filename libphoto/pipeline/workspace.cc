@@ -116,4 +116,60 @@ std::vector<ImageFeatures> LoadFeatures(const PipelineOptions& o, IngestView* in
 }
 
 
+std::string ContentHash(const std::filesystem::path& path) {
+  if (path.empty()) return "";
+  if (!std::filesystem::exists(path)) return "missing";
+  const std::string data = ReadTextFile(path);
+  std::uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : data) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+
+nlohmann::json IngestFingerprint(const PipelineOptions& o) {
+  return {{"gps_altitude", o.gps_altitude == AltitudeReference::kEllipsoid ? "ellipsoid" : "egm96"},
+          {"gps_sigma_h_m", o.gps_sigma_h_m},
+          {"gps_sigma_v_m", o.gps_sigma_v_m},
+          {"gps_csv", ContentHash(o.gps_csv)}};
+}
+
+nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
+  const GeoreferenceOptions& g = o.georef;
+  std::string refine = g.auto_refine ? "auto" : ToString(g.bundle.refine_intrinsics);
+  for (const auto& p : g.bundle.refine_params) refine += "," + p;
+  return {{"ingest", ContentHash(o.workspace / "ingest.json")},
+          {"gcp", ContentHash(o.gcp)},
+          {"checkpoints", ContentHash(o.checkpoints)},
+          {"gcp_pixel_origin", o.gcp_pixel_origin == PixelOrigin::kCorner ? "corner" : "centre"},
+          {"crs", g.output_crs},
+          {"gcp_sigma_h_m", g.gcp_sigma_h_m},
+          {"gcp_sigma_v_m", g.gcp_sigma_v_m},
+          {"gps_offset", ToString(g.gps_offset)},
+          {"refine", refine},
+          {"loss", ToString(g.bundle.loss)},
+          {"loss_scale_px", g.bundle.loss_scale_px},
+          {"outlier_threshold_px", g.bundle.outlier_threshold_px}};
+}
+
+nlohmann::json DenseFingerprint(const PipelineOptions& o) {
+  return {{"dense_resolution_m", o.dense_resolution_m}, {"dense_image_scale", o.dense_image_scale},
+          {"dense_min_views", o.dense_min_views},       {"dsm_resolution_m", o.dsm_resolution_m},
+          {"dsm_fill_m", o.dsm_fill_m},                 {"cog", o.cog}};
+}
+
+std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now) {
+  std::string out;
+  for (const auto& [key, value] : now.items()) {
+    const nlohmann::json old = recorded.is_object() && recorded.contains(key) ? recorded.at(key) : nlohmann::json();
+    if (old == value) continue;
+    out += (out.empty() ? "" : "; ") + key + ": " + (old.is_null() ? "unrecorded" : old.dump()) + " -> " +
+           value.dump();
+  }
+  return out;
+}
+
 }  // namespace aerotri

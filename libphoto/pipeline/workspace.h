@@ -29,6 +29,17 @@ nlohmann::json ReadJson(const std::filesystem::path& path, const char* stage);
 std::pair<int, int> WorkingSize(int width, int height, int max_dimension);
 std::filesystem::path FeaturePath(const PipelineOptions& o, const std::string& name);
 
+// FNV-1a 64 of a file's bytes, as 16 hex digits ("" for no path, "missing"
+// when absent): a stage's inputs in its recorded options.
+std::string ContentHash(const std::filesystem::path& path);
+// The options and inputs a stage's product depends on, as recorded in it:
+// a stage whose recorded options differ from these reruns.
+nlohmann::json IngestFingerprint(const PipelineOptions& o);
+nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o);
+nlohmann::json DenseFingerprint(const PipelineOptions& o);
+// "" when equal, else "key: recorded -> now; ..." (only differing keys).
+std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now);
+
 struct IngestView {
   std::vector<std::string> names;
   std::vector<bool> usable;
