@@ -22,6 +22,17 @@ namespace aerotri {
 namespace {
 namespace fs = std::filesystem;
 
+// A new workspace with another's products up to the reconstruction.
+void CopyTiePointProducts(const fs::path& from, const fs::path& to) {
+  fs::create_directories(to);
+  for (const char* item : {"ingest.json", "matches.bin", "matches.json", "reconstruction.json"}) {
+    fs::copy_file(from / item, to / item, fs::copy_options::overwrite_existing);
+  }
+  for (const char* dir : {"features", "reconstruction"}) {
+    fs::copy(from / dir, to / dir, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  }
+}
+
 class Pipeline : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -219,13 +230,7 @@ TEST_F(Pipeline, CompoundCrsGivesAGeoidHeightDsm) {
   PipelineOptions base = Options("ws_gps");
   RunPipeline(base);
   PipelineOptions o = Options("ws_compound");
-  fs::create_directories(o.workspace);
-  for (const char* item : {"ingest.json", "matches.bin", "matches.json", "reconstruction.json"}) {
-    fs::copy_file(base.workspace / item, o.workspace / item, fs::copy_options::overwrite_existing);
-  }
-  for (const char* dir : {"features", "reconstruction"}) {
-    fs::copy(base.workspace / dir, o.workspace / dir, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
-  }
+  CopyTiePointProducts(base.workspace, o.workspace);
   o.georef.output_crs = "EPSG:32632+5773";
   o.gcp = dir_->path() / "survey" / "gcp_list.txt";
   RunPipeline(o);
@@ -277,13 +282,7 @@ TEST_F(Pipeline, ChangedOptionsRerunTheirStage) {
   PipelineOptions base = Options("ws_gps");
   RunPipeline(base);
   PipelineOptions o = Options("ws_rerun");
-  fs::create_directories(o.workspace);
-  for (const char* item : {"ingest.json", "matches.bin", "matches.json", "reconstruction.json"}) {
-    fs::copy_file(base.workspace / item, o.workspace / item, fs::copy_options::overwrite_existing);
-  }
-  for (const char* dir : {"features", "reconstruction"}) {
-    fs::copy(base.workspace / dir, o.workspace / dir, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
-  }
+  CopyTiePointProducts(base.workspace, o.workspace);
   std::vector<std::string> log;
   o.log = [&log](const std::string& line) { log.push_back(line); };
   EXPECT_FALSE(RunIngestStage(o));  // same options: ingest.json stands

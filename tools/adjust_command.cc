@@ -54,17 +54,10 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
                   "Pixel convention of GCP files: centre (OpenDroneMap / OpenSfM: integers at pixel "
                   "centres) or corner (COLMAP: top-left pixel centre at 0.5, 0.5)")
       ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
-  cmd->add_option("--gps-offset", a->gps_offset,
-                  "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
-                  "control points: auto (when the control shows a significant one), always or never")
-      ->check(CLI::IsMember({"never", "auto", "always"}))->capture_default_str();
   cmd->add_option("--crs", a->crs,
                   "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
                   "file's CRS, else the UTM zone of the survey centre");
-  cmd->add_option("--refine", a->refine,
-                  "Intrinsics to refine: auto (chosen from the block's geometry: relief, flying-height "
-                  "variation, oblique views, precise GPS heights), none, focal, focal,pp, all, or a list")
-      ->capture_default_str();
+  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine);
   cmd->add_option("--loss", a->loss, "Robust loss on reprojection residuals")
       ->check(CLI::IsMember({"none", "huber", "cauchy", "tukey"}))->capture_default_str();
   cmd->add_option("--loss-scale", a->loss_scale_px, "Robust loss scale (pixels)")

@@ -21,6 +21,9 @@ using CommandAction = std::function<int(ToolContext&)>;
 
 // --loss NAME --loss-scale PX --refine WHAT, shared by the commands that
 // adjust; throws InvalidArgument naming the option and the allowed values.
+// --gps-offset and --refine (auto by default), shared by run and adjust.
+void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine);
+
 void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,
                             BundleOptions* options);
 

@@ -55,14 +55,7 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
       ->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
       ->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--gps-offset", a->gps_offset,
-                  "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
-                  "control points: auto (when the control shows a significant one), always or never")
-      ->check(CLI::IsMember({"never", "auto", "always"}))->capture_default_str();
-  cmd->add_option("--refine", a->refine,
-                  "Intrinsics refined in the georeferenced adjustment: auto (chosen from the block's "
-                  "geometry), none, focal, focal,pp, all, or a list (f,cx,cy,k1,k2,k3,p1,p2)")
-      ->capture_default_str();
+  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine);
   cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
   cmd->add_option("--dense-resolution", a->dense_resolution_m,
                   "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "tools/tool_context.h"
 
+#include <CLI/CLI.hpp>
+
 #include <bzlib.h>
 #include <gdal.h>
 #include <proj.h>
@@ -57,6 +59,19 @@ std::string VersionString() {
       << NLOHMANN_JSON_VERSION_MAJOR << "." << NLOHMANN_JSON_VERSION_MINOR << "."
       << NLOHMANN_JSON_VERSION_PATCH << ", bzip2 " << BZ2_bzlibVersion() << ")";
   return out.str();
+}
+
+void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine) {
+  cmd->add_option("--gps-offset", *gps_offset,
+                  "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
+                  "control points: auto (when the control shows a significant one), always or never")
+      ->check(CLI::IsMember({"never", "auto", "always"}))
+      ->capture_default_str();
+  cmd->add_option("--refine", *refine,
+                  "Intrinsics refined: auto (all that the block determines; a focal length known to worse "
+                  "than 1 % is held at its EXIF value), none, focal, focal,pp, all, or a list "
+                  "(f,cx,cy,k1,k2,k3,p1,p2)")
+      ->capture_default_str();
 }
 
 void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,
