@@ -116,6 +116,15 @@ TEST_F(Pipeline, PhotosAndControlToACentimetreSurvey) {
   const std::string warnings = report["ingest_warnings"].dump();
   EXPECT_NE(warnings.find("broken.jpg"), std::string::npos);
   EXPECT_NE(warnings.find("no_gps.jpg: no GPS"), std::string::npos);
+  // The status: warnings (bad inputs, a photo left out), no error, the codes
+  // naming what happened.
+  EXPECT_EQ(report["status"], "warnings") << report["errors"].dump();
+  EXPECT_TRUE(report["errors"].empty());
+  std::map<std::string, nlohmann::json> by_code;
+  for (const auto& w : report["warnings"]) by_code[w["code"]] = w;
+  ASSERT_TRUE(by_code.count("IMAGES_NOT_REGISTERED")) << report["warnings"].dump(1);
+  EXPECT_NE(by_code["IMAGES_NOT_REGISTERED"]["items"].dump().find("elsewhere.jpg"), std::string::npos);
+  EXPECT_TRUE(by_code.count("INPUT"));
   // Full-resolution sparse model and cameras in the output CRS.
   EXPECT_TRUE(fs::exists(o.workspace / "sparse" / "images.txt"));
   EXPECT_TRUE(fs::exists(o.workspace / "cameras.csv"));
