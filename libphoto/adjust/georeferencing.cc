@@ -199,7 +199,10 @@ void ApplyQualityGates(const SparseModel& model, const QualityGates& gates, Geor
                     fixed(dome.amplitude_m, 3) + " ± " + fixed(dome.amplitude_sigma_m, 3) + " m (" +
                     fixed(std::abs(dome.amplitude_m) / report->geometry.gsd_m, 1) +
                     " GSD); radial distortion is likely mis-estimated (a nadir block at one altitude: add "
-                    "oblique photos or control across the block)"));
+                    "oblique photos or control across the block)" +
+                    (dome.source == "GPS" ? std::string("; measured on GPS altitudes, which a drift over the flight "
+                                                        "can shape too: check points would tell")
+                                          : std::string())));
   }
   if (!control_bad.empty()) {
     report->findings.push_back(Finding::Warning(
