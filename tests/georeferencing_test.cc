@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <set>
 
 #include "libphoto/base/error.h"
@@ -270,6 +271,33 @@ TEST(Georeferencing, BlunderedGpsFixesAreNamedAndLeftOut) {
   }
   ASSERT_EQ(report.check_stats.count, 6);
   EXPECT_LT(report.check_stats.rmse_3d_m, 1.5 * clean.check_stats.rmse_3d_m);
+}
+
+
+// The stochastic model's check: with sigmas that match the injected noise
+// (0.3 px on ties and marks, GPS 2 / 4 m, control 1 cm) sigma0 is 1; stated
+// 1 px for the images, it is about 0.3.
+TEST(Georeferencing, Sigma0IsOneWhenTheSigmasMatchTheNoise) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(29), {});
+  GeoreferenceOptions options = Options();
+  options.bundle.loss = LossType::kNone;
+  options.bundle.outlier_threshold_px = 0.0;
+  options.bundle.observation_sigma_px = 0.3;
+  SparseModel model = ArbitraryFrame(scene.tie_model, 29);
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, options);
+  SCOPED_TRACE(r.bundle.BriefReport());
+  EXPECT_GT(r.bundle.redundancy, 10000);
+  EXPECT_GT(r.bundle.sigma0, 0.9);
+  EXPECT_LT(r.bundle.sigma0, 1.1);
+
+  options.bundle.observation_sigma_px = 1.0;
+  options.bundle.mark_sigma_px = 0.3;  // marks as stated, ties pessimistic
+  SparseModel again = ArbitraryFrame(scene.tie_model, 29);
+  const GeoreferenceReport p = GeoreferenceAndAdjust(&again, scene.gps, &scene.control, &scene.checks, options);
+  EXPECT_GT(p.bundle.sigma0, 0.25);
+  EXPECT_LT(p.bundle.sigma0, 0.4);
+  std::printf("sigma0 %.4f (redundancy %d) with matching sigmas, %.4f with 1 px ties\n", r.bundle.sigma0,
+              r.bundle.redundancy, p.bundle.sigma0);
 }
 
 }  // namespace

@@ -57,7 +57,7 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
   cmd->add_option("--crs", a->crs,
                   "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
                   "file's CRS, else the UTM zone of the survey centre");
-  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine);
+  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine, &a->tie_sigma_px, &a->mark_sigma_px);
   cmd->add_option("--loss", a->loss, "Robust loss on reprojection residuals")
       ->check(CLI::IsMember({"none", "huber", "cauchy", "tukey"}))->capture_default_str();
   cmd->add_option("--loss-scale", a->loss_scale_px, "Robust loss scale (pixels)")
@@ -92,6 +92,8 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   options.auto_refine = args.refine == "auto";
   ApplyAdjustmentOptions(args.loss, args.loss_scale_px, options.auto_refine ? "all" : args.refine, &bundle);
   bundle.outlier_threshold_px = args.outlier_threshold_px;
+  bundle.observation_sigma_px = args.tie_sigma_px;
+  bundle.mark_sigma_px = args.mark_sigma_px;
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;
 

@@ -21,8 +21,10 @@ using CommandAction = std::function<int(ToolContext&)>;
 
 // --loss NAME --loss-scale PX --refine WHAT, shared by the commands that
 // adjust; throws InvalidArgument naming the option and the allowed values.
-// --gps-offset and --refine (auto by default), shared by run and adjust.
-void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine);
+// --gps-offset and --refine (auto by default), --tie-sigma-px and
+// --mark-sigma-px, shared by run and adjust.
+void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine,
+                                  double* tie_sigma_px, double* mark_sigma_px);
 
 void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,
                             BundleOptions* options);
@@ -56,6 +58,8 @@ struct AdjustArgs {
   std::string gps_altitude = "egm96";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
+  double tie_sigma_px = 1.0;   // image sigma of tie points
+  double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
   std::string gps_offset = "auto";  // never, auto, always
   std::string gcp_pixel_origin = "centre";
   std::string refine = "auto";
@@ -118,6 +122,8 @@ struct RunArgs {
   std::string gcp_pixel_origin = "centre";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
+  double tie_sigma_px = 1.0;   // image sigma of tie points
+  double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
   std::string gps_offset = "auto";  // never, auto, always
   std::string crs;
   double dense_resolution_m = 0.0;

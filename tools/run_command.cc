@@ -55,7 +55,7 @@ void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
       ->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
       ->check(CLI::PositiveNumber)->capture_default_str();
-  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine);
+  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine, &a->tie_sigma_px, &a->mark_sigma_px);
   cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
   cmd->add_option("--dense-resolution", a->dense_resolution_m,
                   "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
@@ -144,6 +144,8 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.georef.gps_offset = *ParseGpsOffsetPolicy(a.gps_offset);
   o.georef.auto_refine = a.refine == "auto";
   ApplyAdjustmentOptions("huber", 1.0, o.georef.auto_refine ? "all" : a.refine, &o.georef.bundle);
+  o.georef.bundle.observation_sigma_px = a.tie_sigma_px;
+  o.georef.bundle.mark_sigma_px = a.mark_sigma_px;
   o.georef.bundle.outlier_threshold_px = 4.0;
   o.georef.bundle.min_images_to_refine_intrinsics = 3;
   o.progress = [&ctx](const std::string& stage) { return ctx.Progress(stage); };

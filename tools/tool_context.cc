@@ -61,7 +61,15 @@ std::string VersionString() {
   return out.str();
 }
 
-void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine) {
+void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine,
+                                  double* tie_sigma_px, double* mark_sigma_px) {
+  cmd->add_option("--tie-sigma-px", *tie_sigma_px, "Image sigma of tie-point measurements (pixels)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--mark-sigma-px", *mark_sigma_px,
+                  "Image sigma of GCP / check-point marks (pixels); 0 = the tie sigma")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_option("--gps-offset", *gps_offset,
                   "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
                   "control points: auto (when the control shows a significant one), always or never")

@@ -54,9 +54,9 @@ class IterationForwarder final : public ceres::IterationCallback {
   int round_;
 };
 
-std::unique_ptr<ceres::LossFunction> MakeLoss(const BundleOptions& options) {
+std::unique_ptr<ceres::LossFunction> MakeLoss(const BundleOptions& options, double sigma_px) {
   // Residuals are divided by sigma_px, so a scale in pixels becomes scale/sigma.
-  const double a = options.loss_scale_px / options.observation_sigma_px;
+  const double a = options.loss_scale_px / sigma_px;
   switch (options.loss) {
     case LossType::kNone:
       return nullptr;
@@ -376,7 +376,9 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   // Blocks are distinct buffers by construction and the model was validated.
   problem_options.disable_all_safety_checks = true;
   ceres::Problem problem(problem_options);
-  std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options);
+  std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options, options.observation_sigma_px);
+  const double mark_sigma = options.mark_sigma_px > 0.0 ? options.mark_sigma_px : options.observation_sigma_px;
+  std::unique_ptr<ceres::LossFunction> mark_loss = MakeLoss(options, mark_sigma);
   ceres::QuaternionManifold quaternion_manifold;
   std::vector<std::unique_ptr<ceres::Manifold>> owned_manifolds;
 
@@ -426,18 +428,22 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     Camera& camera = model->cameras[image.camera];
     double* point = model->points[obs.point].position.data();
     const bool is_merged = !merged[obs.image].empty();
+    // Target marks (control points) have their own image sigma.
+    const bool is_mark = model->points[obs.point].role != PointRole::kTie;
+    const double sigma = is_mark ? mark_sigma : options.observation_sigma_px;
+    ceres::LossFunction* obs_loss = is_mark ? mark_loss.get() : loss.get();
     ceres::CostFunction* cost =
         VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
           using Model = decltype(m);
           if (is_merged) {
-            return new ReprojectionCostMergedCamera<Model>(obs.xy, options.observation_sigma_px);
+            return new ReprojectionCostMergedCamera<Model>(obs.xy, sigma);
           }
-          return new ReprojectionCost<Model>(obs.xy, options.observation_sigma_px);
+          return new ReprojectionCost<Model>(obs.xy, sigma);
         });
     if (is_merged) {
-      problem.AddResidualBlock(cost, loss.get(), merged[obs.image].data(), point);
+      problem.AddResidualBlock(cost, obs_loss, merged[obs.image].data(), point);
     } else {
-      problem.AddResidualBlock(cost, loss.get(), rotations[obs.image].data(),
+      problem.AddResidualBlock(cost, obs_loss, rotations[obs.image].data(),
                                image.pose.centre_in_world.data(), point, camera.params.data());
     }
   }
@@ -772,6 +778,9 @@ bool BundleOptions::Validate(std::string* error) const {
   if (!(loss_scale_px > 0.0)) {
     return fail("loss scale must be > 0 px, got " + std::to_string(loss_scale_px));
   }
+  if (!(mark_sigma_px >= 0.0)) {
+    return fail("mark sigma must be >= 0 px (0 = the observation sigma), got " + std::to_string(mark_sigma_px));
+  }
   if (!(observation_sigma_px > 0.0)) {
     return fail("observation sigma must be > 0 px, got " +
                 std::to_string(observation_sigma_px));
@@ -831,6 +840,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   for (int round = 0;; ++round) {
     RoundResult result = SolveOnce(model, options, round, gps_offset.data());
     summary.gps_offset_estimated = result.offset_estimated;
+    summary.redundancy = result.ceres.num_residuals_reduced - result.ceres.num_effective_parameters_reduced;
+    summary.sigma0 = summary.redundancy > 0 ? std::sqrt(2.0 * result.ceres.final_cost / summary.redundancy) : 0.0;
     summary.intrinsics_precision = result.precision;
     summary.covariance_note = result.covariance_note;
     summary.gps_offset_m = gps_offset;
@@ -925,6 +936,7 @@ std::string BundleSummary::BriefReport() const {
   out << "  cost: " << initial_cost << " -> " << final_cost << " (½Σ‖r‖²), rms: "
       << initial_rms_px << " -> " << final_rms_px << " px\n";
   out << "  iterations: " << iterations << ", termination: " << termination << "\n";
+  out << "  sigma0: " << sigma0 << " (redundancy " << redundancy << ")\n";
   out << "  observations behind their camera (kept): " << num_behind_camera_initial
       << " initially, " << num_behind_camera_final << " after\n";
   if (gps_offset_estimated) {

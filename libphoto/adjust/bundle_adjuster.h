@@ -63,6 +63,9 @@ struct BundleOptions {
   // Standard deviation of an image measurement (px); scales reprojection
   // residuals against priors.
   double observation_sigma_px = 1.0;
+  // Image sigma of target marks (control and check points' measurements);
+  // 0: observation_sigma_px. The loss scale stays in pixels for both.
+  double mark_sigma_px = 0.0;
 
   IntrinsicsRefinement refine_intrinsics = IntrinsicsRefinement::kAll;
   std::vector<std::string> refine_params;  // for kList
@@ -165,6 +168,11 @@ struct BundleSummary {
   int outlier_rounds = 0;
   int outliers_removed = 0;
   std::string termination;      // Ceres termination type and message
+  // A-posteriori sigma of unit weight sqrt(2 cost / redundancy) and the
+  // redundancy (residuals − free parameters) of the last solve: sigma0 near
+  // 1 when the stated sigmas (image, GPS, control) match the data.
+  int redundancy = 0;
+  double sigma0 = 0.0;
   bool converged = false;
 
   // GPS minus camera centre (ENU metres): estimated when

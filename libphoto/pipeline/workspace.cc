@@ -152,7 +152,9 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"refine", refine},
           {"loss", ToString(g.bundle.loss)},
           {"loss_scale_px", g.bundle.loss_scale_px},
-          {"outlier_threshold_px", g.bundle.outlier_threshold_px}};
+          {"outlier_threshold_px", g.bundle.outlier_threshold_px},
+          {"tie_sigma_px", g.bundle.observation_sigma_px},
+          {"mark_sigma_px", g.bundle.mark_sigma_px}};
 }
 
 nlohmann::json DenseFingerprint(const PipelineOptions& o) {

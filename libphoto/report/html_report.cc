@@ -272,6 +272,8 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     << "<div class='card'>images registered<b>" << images.value("registered", 0) << " / " << images.value("total", 0)
     << "</b></div>"
     << "<div class='card'>reprojection RMS<b>" << Num(Get(adj, "final_rms_px"), 2) << " px</b></div>"
+    << "<div class='card'>&sigma;<sub>0</sub> (redundancy " << adj.value("redundancy", 0) << ")<b>"
+    << Num(Get(adj, "sigma0", NAN), 3) << "</b></div>"
     << "<div class='card'>GSD<b>" << Num(Get(r, "gsd_m", NAN) * 100, 1) << " cm</b></div>"
     << "<div class='card'>check points RMSE 3D<b>" << Num(Get(r.value("check_points", json::object()), "rmse_3d_m"), 3)
     << " m</b></div>"

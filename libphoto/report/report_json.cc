@@ -58,6 +58,15 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
   j["termination"] = s.termination;
   j["converged"] = s.converged;
   j["linear_solver"] = s.linear_solver;
+  // The stochastic model's check: r sigma0^2 follows chi^2(r) when the stated
+  // sigmas hold; z is its normal approximation.
+  j["sigma0"] = s.sigma0;
+  j["redundancy"] = s.redundancy;
+  const double z = s.redundancy > 0 ? (s.sigma0 * s.sigma0 - 1.0) * std::sqrt(s.redundancy / 2.0) : 0.0;
+  j["chi2_test"] = {{"z", z},
+                    {"consistent", std::abs(z) < 3.0},
+                    {"note", "r sigma0^2 ~ chi^2(r) under the stated sigmas; |z| >= 3: the sigmas (image, GPS, "
+                             "control) do not describe the data (sigma0 < 1: pessimistic, > 1: optimistic)"}};
   j["datum"] = s.gauge;
   j["outliers_removed"] = s.outliers_removed;
   j["observations_behind_camera"] = s.num_behind_camera_final;
