@@ -26,6 +26,16 @@ SyntheticSurveyOptions Block(std::uint32_t seed, double relief_m, double attitud
   return o;
 }
 
+// Georeferencing as the policy tests run it, with an EXIF focal prior.
+GeoreferenceOptions PolicyOptions(double exif_focal_px) {
+  GeoreferenceOptions options;
+  options.output_crs = "EPSG:32632";
+  options.bundle.loss = LossType::kHuber;
+  options.bundle.loss_scale_px = 2.0;
+  options.bundle.focal_prior_px = {exif_focal_px};
+  return options;
+}
+
 bool HasFinding(const GeoreferenceReport& r, const std::string& code) {
   for (const Finding& f : r.findings) {
     if (f.code == code) return true;
@@ -83,12 +93,8 @@ TEST(DomeTest, RecoversAnInjectedDomeAndFindsNoneWhereThereIsNone) {
 // as asked, it is flagged. The a-priori sigma is what says it.
 TEST(RefinementPolicy, HoldsAFocalLengthTheBlockCannotDetermine) {
   const SyntheticGeoref scene = MakeSyntheticGeoref(Block(41, 0.0, 0.3), {});
-  GeoreferenceOptions options;
-  options.output_crs = "EPSG:32632";
-  options.bundle.loss = LossType::kHuber;
-  options.bundle.loss_scale_px = 2.0;
   const double exif_focal = 3000.0 * 1.004;  // an EXIF value 0.4 % off
-  options.bundle.focal_prior_px = {exif_focal};
+  const GeoreferenceOptions options = PolicyOptions(exif_focal);
 
   SparseModel model = scene.tie_model;
   model.cameras[0].params[0] *= 1.01;
@@ -114,11 +120,7 @@ TEST(RefinementPolicy, HoldsAFocalLengthTheBlockCannotDetermine) {
 // of a percent, not a rubber stamp.
 TEST(RefinementPolicy, RefinesEverythingWhereReliefDeterminesIt) {
   const SyntheticGeoref scene = MakeSyntheticGeoref(Block(42, 30.0, 2.0), {});
-  GeoreferenceOptions options;
-  options.output_crs = "EPSG:32632";
-  options.bundle.loss = LossType::kHuber;
-  options.bundle.loss_scale_px = 2.0;
-  options.bundle.focal_prior_px = {3000.0 * 1.02};
+  const GeoreferenceOptions options = PolicyOptions(3000.0 * 1.02);
   SparseModel model = scene.tie_model;
   model.cameras[0].params[0] *= 1.02;
   const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, options);
