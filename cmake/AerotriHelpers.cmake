@@ -1,15 +1,47 @@
 # SPDX-License-Identifier: BSD-3-Clause
 # Thin helpers so per-folder CMake files stay a list of sources and dependencies.
 
-# aerotri_add_library(<name> SOURCES ... [DEPS ...])
-# Creates target aerotri_<name> with alias aerotri::<name>. Headers are included
-# relative to the project root: #include "camera_models/brown.h".
+# aerotri_add_library(<name> SOURCES ... [PUBLIC_DEPS ...] [PRIVATE_DEPS ...])
+# Creates target aerotri_<name> with alias aerotri::<name>, one per folder
+# (the folder that calls it). Headers are included relative to the project
+# root: #include "camera_models/brown.h". PUBLIC_DEPS are what the folder's
+# headers include; PRIVATE_DEPS what only its sources do (the COLMAP
+# PUBLIC_LINK_LIBS / PRIVATE_LINK_LIBS split). The folder and its aerotri
+# dependencies are recorded for aerotri_check_layering(), which refuses a
+# cycle and any #include of a folder the target does not link.
 function(aerotri_add_library name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
   add_library(aerotri_${name} STATIC ${ARG_SOURCES})
   add_library(aerotri::${name} ALIAS aerotri_${name})
   target_include_directories(aerotri_${name} PUBLIC ${PROJECT_SOURCE_DIR})
-  target_link_libraries(aerotri_${name} PUBLIC ${ARG_DEPS})
+  target_link_libraries(aerotri_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  aerotri_record_layer(aerotri::${name} ${ARG_PUBLIC_DEPS} ${ARG_PRIVATE_DEPS})
+endfunction()
+
+# aerotri_record_layer(<target> <deps>...): one line of the layering manifest,
+# "target|folder|dep,dep", for the aerotri:: targets among <deps>.
+function(aerotri_record_layer target)
+  file(RELATIVE_PATH folder ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR})
+  set(deps "")
+  foreach(dep ${ARGN})
+    if(dep MATCHES "^aerotri::")
+      list(APPEND deps ${dep})
+    endif()
+  endforeach()
+  string(REPLACE ";" "," deps "${deps}")
+  set_property(GLOBAL APPEND PROPERTY AEROTRI_LAYERS "${target}|${folder}|${deps}")
+endfunction()
+
+# Writes the manifest of every recorded library and checks it (cmake/CheckLayering.cmake):
+# configuration fails on a cycle or an upward include.
+function(aerotri_check_layering)
+  get_property(layers GLOBAL PROPERTY AEROTRI_LAYERS)
+  set(manifest ${PROJECT_BINARY_DIR}/aerotri_layers.txt)
+  file(WRITE ${manifest} "${layers}")
+  set(AEROTRI_LAYERS_MANIFEST ${manifest} PARENT_SCOPE)
+  set(MANIFEST ${manifest})
+  set(ROOT ${PROJECT_SOURCE_DIR})
+  include(${PROJECT_SOURCE_DIR}/cmake/CheckLayering.cmake)
 endfunction()
 
 # aerotri_add_test(<module> <name> SOURCES ... [DEPS ...] [TIER unit|pipeline|realdata])

@@ -76,9 +76,7 @@ class Pipeline : public ::testing::Test {
     o.workspace = dir_->path() / workspace;
     o.gps_sigma_h_m = 2.0;
     o.gps_sigma_v_m = 4.0;
-    o.georef.bundle.loss = LossType::kHuber;
-    o.georef.bundle.outlier_threshold_px = 4.0;
-    o.georef.bundle.min_images_to_refine_intrinsics = 3;
+    // The adjustment is the product's (SurveyBundleOptions), as users get it.
     return o;
   }
   static testing::TempDir* dir_;

@@ -11,7 +11,9 @@
 #include <functional>
 #include <string>
 
+#include "georef/gps_fix.h"
 #include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/adjust/georeferencing.h"
 #include "tools/tool_context.h"
 
 namespace aerotri {
@@ -28,6 +30,8 @@ void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::s
 
 void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,
                             BundleOptions* options);
+// --refine alone (run: the loss is the survey default, SurveyBundleOptions()).
+void ApplyRefineOption(const std::string& refine, BundleOptions* options);
 
 struct BalArgs {
   std::string problem;
@@ -53,8 +57,8 @@ struct AdjustArgs {
   std::string gps_csv;
   std::string crs;
   std::string output;
-  double gps_sigma_h_m = 2.0;
-  double gps_sigma_v_m = 4.0;
+  double gps_sigma_h_m = kDefaultGpsSigmaH;
+  double gps_sigma_v_m = kDefaultGpsSigmaV;
   std::string gps_altitude = "egm96";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
@@ -63,9 +67,10 @@ struct AdjustArgs {
   std::string gps_offset = "auto";  // never, auto, always
   std::string gcp_pixel_origin = "centre";
   std::string refine = "auto";
-  std::string loss = "huber";
-  double loss_scale_px = 2.0;
-  double outlier_threshold_px = 4.0;
+  // The survey defaults of the library (SurveyBundleOptions), not the CLI's own.
+  std::string loss = ToString(SurveyBundleOptions().loss);
+  double loss_scale_px = SurveyBundleOptions().loss_scale_px;
+  double outlier_threshold_px = SurveyBundleOptions().outlier_threshold_px;
   int threads = 0;
   int max_iterations = 100;
 };
@@ -111,8 +116,8 @@ struct RunArgs {
   bool force = false;
   int threads = 0;
   std::string gps_altitude = "egm96";
-  double gps_sigma_h_m = 3.0;
-  double gps_sigma_v_m = 5.0;
+  double gps_sigma_h_m = kDefaultGpsSigmaH;
+  double gps_sigma_v_m = kDefaultGpsSigmaV;
   std::string gps_csv;
   int max_dimension = 1600;
   int max_features = 12000;

@@ -143,11 +143,9 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.georef.gcp_sigma_v_m = a.gcp_sigma_v_m;
   o.georef.gps_offset = *ParseGpsOffsetPolicy(a.gps_offset);
   o.georef.auto_refine = a.refine == "auto";
-  ApplyAdjustmentOptions("huber", 1.0, o.georef.auto_refine ? "all" : a.refine, &o.georef.bundle);
+  ApplyRefineOption(o.georef.auto_refine ? "all" : a.refine, &o.georef.bundle);
   o.georef.bundle.observation_sigma_px = a.tie_sigma_px;
   o.georef.bundle.mark_sigma_px = a.mark_sigma_px;
-  o.georef.bundle.outlier_threshold_px = 4.0;
-  o.georef.bundle.min_images_to_refine_intrinsics = 3;
   o.progress = [&ctx](const std::string& stage) { return ctx.Progress(stage); };
   o.log = [&ctx](const std::string& message) {
     if (message.rfind("warning: ", 0) == 0) {

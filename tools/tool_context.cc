@@ -86,13 +86,17 @@ void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const
                             BundleOptions* options) {
   const auto parsed_loss = ParseLossType(loss);
   if (!parsed_loss) throw InvalidArgument("--loss: unknown loss '" + loss + "'");
+  options->loss = *parsed_loss;
+  options->loss_scale_px = loss_scale_px;
+  ApplyRefineOption(refine, options);
+}
+
+void ApplyRefineOption(const std::string& refine, BundleOptions* options) {
   const auto parsed_refine = ParseIntrinsicsRefinement(refine, &options->refine_params);
   if (!parsed_refine) {
     throw InvalidArgument("--refine: expected none, focal, focal,pp, all or a list of f, cx, cy, k1, k2, k3, "
                           "p1, p2; got '" + refine + "'");
   }
-  options->loss = *parsed_loss;
-  options->loss_scale_px = loss_scale_px;
   options->refine_intrinsics = *parsed_refine;
 }
 

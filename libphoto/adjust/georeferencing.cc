@@ -7,9 +7,18 @@
 #include <unordered_map>
 
 #include "libphoto/base/error.h"
-#include "libphoto/sfm/triangulation.h"
+#include "libphoto/geometry/triangulation.h"
 
 namespace aerotri {
+
+BundleOptions SurveyBundleOptions() {
+  BundleOptions o;
+  o.loss = LossType::kHuber;
+  o.loss_scale_px = 1.0;
+  o.outlier_threshold_px = 4.0;
+  o.min_images_to_refine_intrinsics = 3;
+  return o;
+}
 namespace {
 
 struct SurveyedPoint {

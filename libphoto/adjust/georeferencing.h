@@ -39,8 +39,8 @@
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/adjust/findings.h"
 #include "libphoto/base/progress.h"
-#include "libphoto/ingest/gps_sources.h"
-#include "libphoto/sfm/triangulation.h"
+#include "georef/gps_fix.h"
+#include "libphoto/geometry/triangulation.h"
 
 namespace aerotri {
 
@@ -51,6 +51,13 @@ namespace aerotri {
 enum class GpsOffsetPolicy { kNever, kAuto, kAlways };
 std::string ToString(GpsOffsetPolicy policy);
 std::optional<GpsOffsetPolicy> ParseGpsOffsetPolicy(const std::string& text);
+
+// The survey adjustment's product defaults, one definition for `aerotri run`,
+// `aerotri adjust` and library callers alike: Huber loss departing at 1 px,
+// observations beyond 4 px rejected and the block re-solved, intrinsics
+// refined only for camera groups seen by 3 or more images. (BundleOptions'
+// own defaults are the BAL literature's plain least squares.)
+BundleOptions SurveyBundleOptions();
 
 struct GeoreferenceOptions {
   std::string output_crs;       // empty: the control file's CRS, else UTM
@@ -69,7 +76,7 @@ struct GeoreferenceOptions {
   // bundle.refine_intrinsics as given, a weak focal length flagged.
   bool auto_refine = true;
   double weak_focal_rel = 0.01;
-  BundleOptions bundle;
+  BundleOptions bundle = SurveyBundleOptions();
   ProgressCallback progress;
 };
 

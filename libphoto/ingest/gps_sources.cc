@@ -36,12 +36,6 @@ std::vector<std::string> SplitFields(const std::string& line) {
 
 }  // namespace
 
-double EllipsoidalHeight(double lat_deg, double lon_deg, double altitude_m,
-                         AltitudeReference reference) {
-  if (reference == AltitudeReference::kEllipsoid) return altitude_m;
-  return altitude_m + Egm96Undulation(lat_deg, lon_deg);
-}
-
 std::map<std::string, GpsFix> GpsFromImages(const std::vector<std::string>& image_names,
                                             const std::filesystem::path& images_dir,
                                             AltitudeReference reference, double sigma_h_m,

@@ -4,12 +4,6 @@
 // Where camera GPS positions come from: the images' EXIF, or a CSV of
 // positions and sigmas that overrides EXIF.
 //
-// EXIF GPS altitude's reference differs by vendor: the EXIF standard says
-// "above sea level", which DJI and most cameras write as EGM96-like heights;
-// some RTK workflows write ellipsoidal heights. The reference is therefore an
-// explicit choice; EGM96 heights become ellipsoidal through PROJ's
-// egm96_15.gtx (h = H + N).
-//
 // CSV: one line per image, `name,lat,lon,alt[,sigma_h,sigma_v]` (degrees,
 // metres; commas, semicolons, tabs or spaces separate fields). '#' starts a
 // comment; a first line starting with a non-numeric second field is a header.
@@ -19,24 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "georef/local_frame.h"
+#include "georef/gps_fix.h"
 
 namespace aerotri {
-
-enum class AltitudeReference { kEgm96, kEllipsoid };
-
-// A GPS position of a camera centre: WGS84 latitude, longitude and
-// ellipsoidal height, with its standard deviations (m).
-struct GpsFix {
-  Geodetic position;
-  double sigma_h_m = 2.0;
-  double sigma_v_m = 4.0;
-  std::string source;  // "exif", "exif+rtk", "csv"
-};
-
-// Converts an altitude in the given reference to WGS84 ellipsoidal height.
-double EllipsoidalHeight(double lat_deg, double lon_deg, double altitude_m,
-                         AltitudeReference reference);
 
 // Reads the EXIF GPS of each named image in images_dir. Images without GPS,
 // missing or unreadable files are listed in *warnings, not fatal. DJI RTK

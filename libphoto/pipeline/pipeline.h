@@ -42,8 +42,8 @@ struct PipelineOptions {
 
   // ingest
   AltitudeReference gps_altitude = AltitudeReference::kEgm96;
-  double gps_sigma_h_m = 3.0;
-  double gps_sigma_v_m = 5.0;
+  double gps_sigma_h_m = kDefaultGpsSigmaH;
+  double gps_sigma_v_m = kDefaultGpsSigmaV;
   std::filesystem::path gps_csv;  // optional, overrides EXIF
 
   FeatureOptions features;

@@ -11,7 +11,7 @@
 #include "libphoto/base/error.h"
 #include "georef/similarity.h"
 #include "libphoto/sfm/tracks.h"
-#include "libphoto/sfm/triangulation.h"
+#include "libphoto/geometry/triangulation.h"
 
 namespace aerotri {
 namespace {

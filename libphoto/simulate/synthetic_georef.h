@@ -9,7 +9,7 @@
 #include <map>
 
 #include "georef/gcp_file.h"
-#include "libphoto/ingest/gps_sources.h"
+#include "georef/gps_fix.h"
 #include "libphoto/simulate/synthetic_survey.h"
 
 namespace aerotri {

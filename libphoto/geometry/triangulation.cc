@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "libphoto/sfm/triangulation.h"
+#include "libphoto/geometry/triangulation.h"
 
 #include <Eigen/Dense>
 #include <cmath>

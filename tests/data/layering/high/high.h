@@ -1,0 +1,2 @@
+// A top-layer header; including the layer below is allowed.
+#include "low/low.h"
