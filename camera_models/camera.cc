@@ -123,4 +123,11 @@ std::optional<Eigen::Vector3d> Camera::RayFromImage(
   return uv->homogeneous().normalized();
 }
 
+std::pair<int, int> WorkingImageSize(int width, int height, int max_dimension) {
+  const int longer = std::max(width, height);
+  if (max_dimension <= 0 || longer <= max_dimension) return {width, height};
+  const double s = static_cast<double>(longer) / max_dimension;
+  return {static_cast<int>(std::lround(width / s)), static_cast<int>(std::lround(height / s))};
+}
+
 }  // namespace aerotri

@@ -12,6 +12,7 @@
 #include <optional>
 #include <string>
 #include <vector>
+#include <utility>
 
 #include "camera_models/brown.h"
 #include "camera_models/camera_model.h"
@@ -69,5 +70,12 @@ struct Camera {
   std::optional<Eigen::Vector3d> RayFromImage(
       const Eigen::Vector2d& xy, const UndistortOptions& options = {}) const;
 };
+
+// The size (width, height) of a width x height image at a working
+// resolution whose longer side is at most max_dimension (0: full size);
+// full px per working px is width / working width. The one definition for
+// ingest (camera groups), features (the resampled image) and the stages
+// that map working pixels back to full ones.
+std::pair<int, int> WorkingImageSize(int width, int height, int max_dimension);
 
 }  // namespace aerotri

@@ -46,6 +46,7 @@ FocalEstimate FocalFromExif(const ExifOptics& o) {
                               ? static_cast<double>(o.width) / *o.exif_pixel_width
                               : 1.0;
     e.focal_px = *o.focal_mm * *o.focal_plane_px_per_mm * resize;
+    e.basis = FocalBasis::kFocalPlane;
     e.source = Format("EXIF focal length %.2f mm and focal-plane resolution (%.1f px/mm)",
                       *o.focal_mm, *o.focal_plane_px_per_mm);
     return e;
@@ -53,12 +54,14 @@ FocalEstimate FocalFromExif(const ExifOptics& o) {
   if (o.focal_mm && *o.focal_mm > 0) {
     if (const auto sensor = KnownSensorWidthMm(o.make, o.model)) {
       e.focal_px = *o.focal_mm / *sensor * longer;
+      e.basis = FocalBasis::kSensorTable;
       e.source = Format("EXIF focal length %.2f mm, known sensor width %.2f mm", *o.focal_mm, *sensor);
       return e;
     }
   }
   if (o.focal_35mm && *o.focal_35mm > 0) {
     e.focal_px = *o.focal_35mm / 36.0 * longer;
+    e.basis = FocalBasis::kEquivalent35mm;
     e.source = Format("EXIF 35 mm equivalent focal length %.0f mm over a %.0f mm frame width",
                       *o.focal_35mm, 36.0);
     return e;

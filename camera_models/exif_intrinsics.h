@@ -28,9 +28,15 @@ struct ExifOptics {
   int height = 0;
 };
 
+// Which of the four rules gave the value. The first two measure the focal
+// length (a prior worth holding the adjustment to); the last two only guess.
+enum class FocalBasis { kFocalPlane, kSensorTable, kEquivalent35mm, kGuess };
+
 struct FocalEstimate {
   double focal_px = 0.0;  // for the stored image size
-  std::string source;
+  FocalBasis basis = FocalBasis::kGuess;
+  std::string source;     // for people: the rule and its EXIF values
+  bool Measured() const { return basis == FocalBasis::kFocalPlane || basis == FocalBasis::kSensorTable; }
 };
 
 FocalEstimate FocalFromExif(const ExifOptics& optics);

@@ -8,6 +8,7 @@
 #include "camera_models/exif_intrinsics.h"
 #include "libphoto/base/error.h"
 #include "libphoto/ingest/gps_sources.h"
+#include "libphoto/ingest/ingest.h"
 #include "libphoto/ingest/image_metadata.h"
 #include "libphoto/io/image_writer.h"
 #include "tests/test_util.h"
@@ -98,6 +99,78 @@ TEST(ExifIntrinsics, FallsBackInOrderAndSaysSo) {
   const FocalEstimate guess = FocalFromExif(o);
   EXPECT_NEAR(guess.focal_px, 0.85 * 3600, 1e-9);
   EXPECT_NE(guess.source.find("assumed"), std::string::npos);
+}
+
+// Runs f, which must throw E with `text` in its message.
+template <typename E, typename F>
+void ExpectThrowWith(F f, const std::string& text) {
+  try {
+    f();
+    ADD_FAILURE() << "no exception; expected one saying: " << text;
+  } catch (const E& e) {
+    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+  }
+}
+
+// The ingest stage as a module: photos in, a typed record out, the record
+// through ingest.json and back unchanged; a schema-1 record's focal prior
+// decided as before; a corrupt record refused naming the file.
+TEST(IngestStage, TypedRecordRoundTripsAndRefusesCorruptFiles) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "photos");
+  cv::Mat image(300, 400, CV_8UC3, cv::Scalar(40, 120, 200));
+  std::map<std::string, std::string> exif = {
+      {"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"},
+      {"EXIF_GPSLatitude", ExifDms(46.842609)}, {"EXIF_GPSLatitudeRef", "N"},
+      {"EXIF_GPSLongitude", ExifDms(91.994561)}, {"EXIF_GPSLongitudeRef", "W"},
+      {"EXIF_GPSAltitude", "(198.309)"}, {"EXIF_GPSAltitudeRef", "0x00"},
+      {"EXIF_FocalLength", "(3.61)"}};
+  WriteJpegWithExif(dir / "photos" / "a.jpg", image, exif);
+  WriteJpegWithExif(dir / "photos" / "b.jpg", image, {});  // no EXIF: joins a's group
+  IngestOptions o;
+  o.images_dir = dir / "photos";
+  o.max_dimension = 200;
+  o.gps_altitude = AltitudeReference::kEllipsoid;
+  const IngestRecord r = IngestSurveyImages(o, nullptr);
+  ASSERT_EQ(r.images.size(), 2u);
+  ASSERT_EQ(r.groups.size(), 1u);
+  EXPECT_EQ(r.images[0].working_width, 200);
+  EXPECT_EQ(r.images[0].working_height, 150);
+  EXPECT_DOUBLE_EQ(r.images[0].scale, 2.0);
+  ASSERT_TRUE(r.images[0].gps.has_value());
+  EXPECT_NEAR(r.images[0].gps->position.h_m, 198.309, 1e-3);
+  EXPECT_DOUBLE_EQ(r.images[0].gps->sigma_h_m, kDefaultGpsSigmaH);
+  EXPECT_FALSE(r.images[1].gps.has_value());
+  EXPECT_EQ(r.images[1].group, 0);
+  EXPECT_EQ(r.groups[0].images, 2);
+  EXPECT_TRUE(r.groups[0].focal_measured);  // 3.61 mm on the known 6.17 mm sensor
+  // 3.61 / 6.17 x 200 working px.
+  EXPECT_NEAR(r.groups[0].camera.focal_px(), 3.61 / 6.17 * 200, 1e-6);
+
+  const nlohmann::json doc = ToJson(r);
+  EXPECT_EQ(doc.at("schema_version"), IngestRecord::kSchemaVersion);
+  EXPECT_EQ(ToJson(IngestRecordFromJson(doc, "ingest.json")), doc);
+
+  nlohmann::json legacy = doc;  // schema 1: no version, no focal_measured
+  legacy.erase("schema_version");
+  legacy["groups"][0].erase("focal_measured");
+  legacy["groups"][0]["focal_source"] = "EXIF 35 mm equivalent focal length 20 mm over a 36 mm frame width";
+  EXPECT_FALSE(IngestRecordFromJson(legacy, "ingest.json").groups[0].focal_measured);
+  legacy["groups"][0]["focal_source"] = "EXIF focal length 3.61 mm, known sensor width 6.17 mm";
+  EXPECT_TRUE(IngestRecordFromJson(legacy, "ingest.json").groups[0].focal_measured);
+
+  nlohmann::json bad = doc;
+  bad["images"][0]["group"] = 7;
+  ExpectThrowWith<ParseError>([&] { IngestRecordFromJson(bad, "WS/ingest.json"); }, "WS/ingest.json: image 'a.jpg' names camera group 7 of 1");
+  bad = doc;
+  bad["groups"][0].erase("params");
+  ExpectThrowWith<ParseError>([&] { IngestRecordFromJson(bad, "WS/ingest.json"); }, "WS/ingest.json: not a complete ingest record");
+  bad = doc;
+  bad["schema_version"] = 99;
+  ExpectThrowWith<ParseError>([&] { IngestRecordFromJson(bad, "WS/ingest.json"); }, "schema_version 99");
+
+  o.gps_sigma_v_m = 0.0;
+  ExpectThrowWith<InvalidArgument>([&] { o.Check(); }, "--gps-sigma-v: expected a positive number");
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "libphoto/base/atomic_file.h"
+#include "camera_models/camera.h"
 #include "libphoto/base/error.h"
 
 namespace aerotri {
@@ -75,16 +76,13 @@ cv::Mat ImageFeatures::FloatDescriptors() const {
 cv::Mat LoadWorkingImage(const std::filesystem::path& image_path, int max_dimension, double* scale) {
   cv::Mat full = cv::imread(image_path.string(), cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
   if (full.empty()) throw IoError(image_path.string(), "cannot decode the image (corrupt or not an image)");
-  const int longer = std::max(full.cols, full.rows);
-  if (max_dimension <= 0 || longer <= max_dimension) {
+  const auto [ww, wh] = WorkingImageSize(full.cols, full.rows, max_dimension);
+  if (ww == full.cols && wh == full.rows) {
     if (scale) *scale = 1.0;
     return full;
   }
-  const double s = static_cast<double>(longer) / max_dimension;
   cv::Mat work;
-  cv::resize(full, work, cv::Size(static_cast<int>(std::lround(full.cols / s)),
-                                  static_cast<int>(std::lround(full.rows / s))),
-             0, 0, cv::INTER_AREA);
+  cv::resize(full, work, cv::Size(ww, wh), 0, 0, cv::INTER_AREA);
   if (scale) *scale = static_cast<double>(full.cols) / work.cols;
   return work;
 }

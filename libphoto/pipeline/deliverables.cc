@@ -203,8 +203,8 @@ bool RunDenseStage(const PipelineOptions& o) {
   const GeoFrame g = FrameOf(report);
   const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
   IngestView ingest = LoadIngest(o);
-  const fs::path images_dir = ingest.raw.value("images_dir", o.images_dir.string());
-  const int max_dimension = ingest.raw.value("working_max_dimension", o.features.max_dimension);
+  const fs::path images_dir = ingest.ImagesDir(o);
+  const int max_dimension = ingest.record.working_max_dimension;
   DenseOptions d;
   d.resolution_m = o.dense_resolution_m;
   d.image_scale = o.dense_image_scale;

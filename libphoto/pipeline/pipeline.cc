@@ -22,7 +22,6 @@
 #include "libphoto/base/error.h"
 #include "libphoto/base/parallel.h"
 #include "libphoto/dense/dense_stereo.h"
-#include "libphoto/ingest/image_metadata.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/pipeline/workspace.h"
 #include "libphoto/report/report_json.h"
@@ -45,175 +44,18 @@ bool RunIngestStage(const PipelineOptions& o) {
     Log(o, "ingest: options changed since " + out.string() + " (" + changed + "): rerunning");
   }
   const auto start = Clock::now();
-  if (!fs::is_directory(o.images_dir)) {
-    throw IoError(o.images_dir.string(), "not a folder of images");
-  }
-  std::vector<fs::path> files;
-  for (const auto& entry : fs::directory_iterator(o.images_dir)) {
-    if (entry.is_regular_file() && IsImageFileName(entry.path())) files.push_back(entry.path());
-  }
-  std::sort(files.begin(), files.end());
-  if (files.empty()) {
-    throw InvalidArgument(o.images_dir.string() + ": no images (.jpg, .jpeg, .tif, .tiff) found");
-  }
-  ProgressCallback progress = StageProgress(o, "ingest");
-  std::map<std::string, GpsFix> csv;
-  if (!o.gps_csv.empty()) csv = ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
-
-  json images = json::array();
-  json warnings = json::array();
-  std::map<std::string, int> group_of_key;
-  json groups = json::array();
-  int with_gps = 0;
-  std::vector<std::pair<size_t, ImageMetadata>> pending_optics;
-  // The group of a camera key, created with its EXIF focal estimate.
-  auto GroupFor = [&](const std::string& key, const ImageMetadata& m, int ww, int wh) {
-    auto [it, inserted] = group_of_key.emplace(key, static_cast<int>(groups.size()));
-    if (inserted) {
-      ExifOptics optics;
-      optics.make = m.make;
-      optics.model = m.model;
-      optics.focal_mm = m.focal_mm;
-      optics.focal_35mm = m.focal_35mm;
-      optics.focal_plane_px_per_mm = m.focal_plane_px_per_mm;
-      optics.exif_pixel_width = m.exif_pixel_width;
-      optics.width = m.width;
-      optics.height = m.height;
-      const FocalEstimate focal = FocalFromExif(optics);
-      const Camera c = Camera::Create(CameraModelId::kBrown, focal.focal_px * ww / m.width, ww, wh);
-      json g;
-      g["key"] = key;
-      g["make"] = m.make;
-      g["model"] = m.model;
-      g["working_width"] = ww;
-      g["working_height"] = wh;
-      g["camera_model"] = "BROWN";
-      g["params"] = c.params;
-      g["focal_source"] = focal.source;
-      g["images"] = 0;
-      groups.push_back(g);
-      if (focal.source.rfind("EXIF focal length", 0) != 0) {
-        warnings.push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
-      }
-    }
-    groups[it->second]["images"] = groups[it->second]["images"].get<int>() + 1;
-    return it->second;
-  };
-  for (size_t k = 0; k < files.size(); ++k) {
-    const std::string name = files[k].filename().string();
-    json im;
-    im["name"] = name;
-    ImageMetadata m;
-    try {
-      m = ReadImageMetadata(files[k]);
-    } catch (const IoError& e) {
-      im["usable"] = false;
-      im["problem"] = std::string("unreadable: ") + e.what();
-      warnings.push_back(std::string(e.what()) + "; skipped");
-      images.push_back(im);
-      continue;
-    }
-    im["usable"] = true;
-    im["width"] = m.width;
-    im["height"] = m.height;
-    const auto [ww, wh] = WorkingSize(m.width, m.height, o.features.max_dimension);
-    im["working_width"] = ww;
-    im["working_height"] = wh;
-    im["scale"] = static_cast<double>(m.width) / ww;
-    im["make"] = m.make;
-    im["model"] = m.model;
-    if (m.focal_mm) im["focal_mm"] = *m.focal_mm;
-    if (m.relative_altitude_m) im["relative_altitude_m"] = *m.relative_altitude_m;
-    if (m.gimbal_pitch_deg) im["gimbal_pitch_deg"] = *m.gimbal_pitch_deg;
-    if (m.gimbal_yaw_deg) im["gimbal_yaw_deg"] = *m.gimbal_yaw_deg;
-
-    std::optional<GpsFix> fix;
-    if (const auto it = csv.find(name); it != csv.end()) {
-      fix = it->second;
-    } else if (m.HasGps() && m.gps_altitude_m && !(*m.lat_deg == 0.0 && *m.lon_deg == 0.0)) {
-      GpsFix f;
-      f.position = {*m.lat_deg, *m.lon_deg,
-                    EllipsoidalHeight(*m.lat_deg, *m.lon_deg, *m.gps_altitude_m, o.gps_altitude)};
-      f.sigma_h_m = o.gps_sigma_h_m;
-      f.sigma_v_m = o.gps_sigma_v_m;
-      f.source = "exif";
-      if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_hgt_m > 0) {
-        f.sigma_h_m = std::max(0.005, std::hypot(*m.rtk_std_lat_m, *m.rtk_std_lon_m) / std::sqrt(2.0));
-        f.sigma_v_m = std::max(0.005, *m.rtk_std_hgt_m);
-        f.source = "exif+rtk";
-      }
-      fix = f;
-    }
-    if (fix) {
-      ++with_gps;
-      im["gps"] = {{"lat_deg", fix->position.lat_deg}, {"lon_deg", fix->position.lon_deg},
-                   {"h_m", fix->position.h_m}, {"sigma_h_m", fix->sigma_h_m},
-                   {"sigma_v_m", fix->sigma_v_m}, {"source", fix->source}};
-    } else {
-      im["gps"] = nullptr;
-      warnings.push_back(name + ": no GPS position (EXIF or CSV)");
-    }
-
-    // Camera group: one physical camera and one working image size. A photo
-    // that says nothing of its camera joins the group of its size when there
-    // is exactly one (a photo of the same flight that lost its EXIF); that
-    // is decided once every photo has been read.
-    const bool anonymous = m.make.empty() && m.model.empty() && !m.focal_mm && !m.focal_35mm;
-    std::ostringstream key;
-    key << m.make << "|" << m.model << "|" << std::setprecision(4) << m.focal_mm.value_or(0.0) << "|"
-        << ww << "x" << wh;
-    if (anonymous) {
-      im["group"] = -1;
-      pending_optics.push_back({images.size(), m});
-      images.push_back(im);
-      ReportProgress(progress, static_cast<double>(k + 1) / files.size(), name);
-      continue;
-    }
-    const int group = GroupFor(key.str(), m, ww, wh);
-    im["group"] = group;
-    images.push_back(im);
-    ReportProgress(progress, static_cast<double>(k + 1) / files.size(), name);
-  }
-  for (const auto& [index, m] : pending_optics) {
-    json& im = images[index];
-    const int ww = im["working_width"], wh = im["working_height"];
-    int match = -1, count = 0;
-    for (size_t g = 0; g < groups.size(); ++g) {
-      if (groups[g]["working_width"] == ww && groups[g]["working_height"] == wh) {
-        match = static_cast<int>(g);
-        ++count;
-      }
-    }
-    if (count == 1) {
-      im["group"] = match;
-      groups[match]["images"] = groups[match]["images"].get<int>() + 1;
-      warnings.push_back(im["name"].get<std::string>() + ": no EXIF camera information; assumed to be the " +
-                         groups[match]["make"].get<std::string>() + " " +
-                         groups[match]["model"].get<std::string>() + " of the other photos of this size");
-    } else {
-      std::ostringstream key;
-      key << "unknown camera|" << ww << "x" << wh;
-      im["group"] = GroupFor(key.str(), m, ww, wh);
-    }
-  }
-  json doc;
-  doc["images_dir"] = fs::absolute(o.images_dir).string();
-  doc["options"] = IngestFingerprint(o);
-  doc["working_max_dimension"] = o.features.max_dimension;
-  doc["images"] = images;
-  doc["groups"] = groups;
-  doc["warnings"] = warnings;
-  doc["images_with_gps"] = with_gps;
+  IngestRecord record = IngestSurveyImages(IngestStageOptions(o), StageProgress(o, "ingest"));
+  record.options = IngestFingerprint(o);
   fs::create_directories(o.workspace);
-  WriteTextFileAtomically(out, doc.dump(2) + "\n");
-  for (const auto& w : warnings) Log(o, "warning: " + w.get<std::string>());
+  WriteTextFileAtomically(out, ToJson(record).dump(2) + "\n");
+  for (const auto& w : record.warnings) Log(o, "warning: " + w);
   RecordTiming(o, "ingest", std::chrono::duration<double>(Clock::now() - start).count());
   return true;
 }
 
 bool RunFeatureStage(const PipelineOptions& o) {
   IngestView ingest = LoadIngest(o);
-  const fs::path images_dir = ingest.raw.value("images_dir", o.images_dir.string());
+  const fs::path images_dir = ingest.ImagesDir(o);
   std::vector<size_t> todo;
   for (size_t i = 0; i < ingest.names.size(); ++i) {
     if (ingest.usable[i] && (o.force || !fs::exists(FeaturePath(o, ingest.names[i])))) todo.push_back(i);
@@ -550,8 +392,9 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
                           {"per_image", m.value("images", json::array())}};
   }
   report["georeference_options"] = GeoreferenceFingerprint(o);
-  report["camera_groups"] = ingest.raw.at("groups");
-  report["ingest_warnings"] = ingest.raw.value("warnings", json::array());
+  const json ingest_doc = ToJson(ingest.record);
+  report["camera_groups"] = ingest_doc.at("groups");
+  report["ingest_warnings"] = ingest_doc.at("warnings");
 
   // The survey's status: the adjustment's findings, photos left out, input
   // problems met at ingest.
@@ -606,6 +449,7 @@ void ValidateInputs(const PipelineOptions& o) {
   if (!o.images_dir.empty() && !fs::is_directory(o.images_dir)) {
     throw IoError(o.images_dir.string(), "not a folder of images");
   }
+  if (!o.images_dir.empty()) IngestStageOptions(o).Check();
   if (!o.georef.output_crs.empty()) Crs::FromString(o.georef.output_crs);  // CrsError names it
   if (!o.gps_csv.empty()) ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
   // Control and check files: readable, their CRS known to PROJ, their images

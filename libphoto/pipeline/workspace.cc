@@ -57,46 +57,39 @@ json ReadJson(const fs::path& path, const char* stage) {
 }
 
 // The working-resolution size ExtractFeatures / LoadWorkingImage produce.
-std::pair<int, int> WorkingSize(int width, int height, int max_dimension) {
-  const int longer = std::max(width, height);
-  if (max_dimension <= 0 || longer <= max_dimension) return {width, height};
-  const double s = static_cast<double>(longer) / max_dimension;
-  return {static_cast<int>(std::lround(width / s)), static_cast<int>(std::lround(height / s))};
-}
-
 fs::path FeaturePath(const PipelineOptions& o, const std::string& name) {
   return o.workspace / "features" / (name + ".sift");
 }
 
+IngestOptions IngestStageOptions(const PipelineOptions& o) {
+  IngestOptions i;
+  i.images_dir = o.images_dir;
+  i.gps_altitude = o.gps_altitude;
+  i.gps_sigma_h_m = o.gps_sigma_h_m;
+  i.gps_sigma_v_m = o.gps_sigma_v_m;
+  i.gps_csv = o.gps_csv;
+  i.max_dimension = o.features.max_dimension;
+  return i;
+}
+
+std::filesystem::path IngestView::ImagesDir(const PipelineOptions& o) const {
+  return record.images_dir.empty() ? o.images_dir : record.images_dir;
+}
+
 IngestView LoadIngest(const PipelineOptions& o) {
   IngestView v;
-  v.raw = ReadJson(o.workspace / "ingest.json", "ingest");
-  for (const json& g : v.raw.at("groups")) {
-    Camera c;
-    c.id = static_cast<int>(v.cameras.size()) + 1;
-    c.model = CameraModelId::kBrown;
-    c.width = g.at("working_width");
-    c.height = g.at("working_height");
-    c.params = g.at("params").get<std::vector<double>>();
-    v.cameras.push_back(c);
-    const bool measured = g.value("focal_source", std::string()).rfind("EXIF focal length", 0) == 0;
-    v.focal_prior_px.push_back(measured ? c.focal_px() : 0.0);
+  const fs::path path = o.workspace / "ingest.json";
+  v.record = IngestRecordFromJson(ReadJson(path, "ingest"), path.string());
+  for (const CameraGroup& g : v.record.groups) {
+    v.cameras.push_back(g.camera);
+    v.focal_prior_px.push_back(g.focal_measured ? g.camera.focal_px() : 0.0);
   }
-  for (const json& im : v.raw.at("images")) {
-    v.names.push_back(im.at("name"));
-    v.usable.push_back(im.at("usable"));
-    v.scale.push_back(im.value("scale", 1.0));
-    v.group.push_back(im.value("group", -1));
-    if (im.contains("gps") && !im["gps"].is_null()) {
-      GpsFix f;
-      f.position = {im["gps"]["lat_deg"], im["gps"]["lon_deg"], im["gps"]["h_m"]};
-      f.sigma_h_m = im["gps"]["sigma_h_m"];
-      f.sigma_v_m = im["gps"]["sigma_v_m"];
-      f.source = im["gps"]["source"];
-      v.gps.push_back(f);
-    } else {
-      v.gps.push_back(std::nullopt);
-    }
+  for (const IngestedImage& im : v.record.images) {
+    v.names.push_back(im.name);
+    v.usable.push_back(im.usable);
+    v.scale.push_back(im.scale);
+    v.group.push_back(im.group);
+    v.gps.push_back(im.gps);
   }
   return v;
 }

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "libphoto/features/features.h"
-#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/ingest/ingest.h"
 #include "libphoto/pipeline/pipeline.h"
 
 namespace aerotri {
@@ -25,8 +25,6 @@ void RecordTiming(const PipelineOptions& o, const std::string& stage, double sec
 unsigned Threads(const PipelineOptions& o);
 // Parses a workspace JSON file; IoError naming the stage to run when missing.
 nlohmann::json ReadJson(const std::filesystem::path& path, const char* stage);
-// The working-resolution size ExtractFeatures / LoadWorkingImage produce.
-std::pair<int, int> WorkingSize(int width, int height, int max_dimension);
 std::filesystem::path FeaturePath(const PipelineOptions& o, const std::string& name);
 
 // FNV-1a 64 of a file's bytes, as 16 hex digits ("" for no path, "missing"
@@ -50,8 +48,13 @@ struct IngestView {
   // Per group: the EXIF focal length (working px) when EXIF gave it in
   // millimetres with a sensor size; 0 when it was a guess.
   std::vector<double> focal_prior_px;
-  nlohmann::json raw;
+  IngestRecord record;
+  // The photo folder ingest read (what later stages decode), else options'.
+  std::filesystem::path ImagesDir(const PipelineOptions& o) const;
 };
+
+// The ingest stage's options, from the pipeline's.
+IngestOptions IngestStageOptions(const PipelineOptions& o);
 
 IngestView LoadIngest(const PipelineOptions& o);
 // Features of the usable images (empty for others); images whose features

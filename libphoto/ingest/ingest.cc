@@ -1,0 +1,304 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/ingest/ingest.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+#include "camera_models/exif_intrinsics.h"
+#include "libphoto/base/error.h"
+#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/ingest/image_metadata.h"
+
+namespace aerotri {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+void IngestOptions::Check() const {
+  if (images_dir.empty()) throw InvalidArgument("ingest: no photo folder given");
+  if (!(gps_sigma_h_m > 0.0) || !std::isfinite(gps_sigma_h_m)) {
+    throw InvalidArgument("--gps-sigma-h: expected a positive number of metres, got " +
+                          std::to_string(gps_sigma_h_m));
+  }
+  if (!(gps_sigma_v_m > 0.0) || !std::isfinite(gps_sigma_v_m)) {
+    throw InvalidArgument("--gps-sigma-v: expected a positive number of metres, got " +
+                          std::to_string(gps_sigma_v_m));
+  }
+  if (max_dimension < 0) {
+    throw InvalidArgument("--max-dimension: expected 0 (full size) or a positive number of pixels, got " +
+                          std::to_string(max_dimension));
+  }
+}
+
+namespace {
+
+// The GPS fix of one photo: the CSV's row, else EXIF (RTK sigmas when tagged).
+std::optional<GpsFix> FixOf(const std::string& name, const ImageMetadata& m,
+                            const std::map<std::string, GpsFix>& csv, const IngestOptions& o) {
+  if (const auto it = csv.find(name); it != csv.end()) return it->second;
+  if (!m.HasGps() || !m.gps_altitude_m || (*m.lat_deg == 0.0 && *m.lon_deg == 0.0)) return std::nullopt;
+  GpsFix f;
+  f.position = {*m.lat_deg, *m.lon_deg, EllipsoidalHeight(*m.lat_deg, *m.lon_deg, *m.gps_altitude_m, o.gps_altitude)};
+  f.sigma_h_m = o.gps_sigma_h_m;
+  f.sigma_v_m = o.gps_sigma_v_m;
+  f.source = "exif";
+  if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_hgt_m > 0) {
+    f.sigma_h_m = std::max(0.005, std::hypot(*m.rtk_std_lat_m, *m.rtk_std_lon_m) / std::sqrt(2.0));
+    f.sigma_v_m = std::max(0.005, *m.rtk_std_hgt_m);
+    f.source = "exif+rtk";
+  }
+  return f;
+}
+
+}  // namespace
+
+IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& progress) {
+  o.Check();
+  if (!fs::is_directory(o.images_dir)) throw IoError(o.images_dir.string(), "not a folder of images");
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(o.images_dir)) {
+    if (entry.is_regular_file() && IsImageFileName(entry.path())) files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  if (files.empty()) {
+    throw InvalidArgument(o.images_dir.string() + ": no images (.jpg, .jpeg, .tif, .tiff) found");
+  }
+  std::map<std::string, GpsFix> csv;
+  if (!o.gps_csv.empty()) csv = ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
+
+  IngestRecord r;
+  r.images_dir = fs::absolute(o.images_dir);
+  r.working_max_dimension = o.max_dimension;
+  std::map<std::string, int> group_of_key;
+  // The group of a camera key, created with its EXIF focal estimate.
+  auto group_for = [&](const std::string& key, const ImageMetadata& m, int ww, int wh) {
+    auto [it, inserted] = group_of_key.emplace(key, static_cast<int>(r.groups.size()));
+    if (inserted) {
+      ExifOptics optics;
+      optics.make = m.make;
+      optics.model = m.model;
+      optics.focal_mm = m.focal_mm;
+      optics.focal_35mm = m.focal_35mm;
+      optics.focal_plane_px_per_mm = m.focal_plane_px_per_mm;
+      optics.exif_pixel_width = m.exif_pixel_width;
+      optics.width = m.width;
+      optics.height = m.height;
+      const FocalEstimate focal = FocalFromExif(optics);
+      CameraGroup g;
+      g.key = key;
+      g.make = m.make;
+      g.model = m.model;
+      g.working_width = ww;
+      g.working_height = wh;
+      g.camera = Camera::Create(CameraModelId::kBrown, focal.focal_px * ww / m.width, ww, wh);
+      g.focal_source = focal.source;
+      g.focal_measured = focal.Measured();
+      r.groups.push_back(g);
+      if (!focal.Measured()) r.warnings.push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
+    }
+    ++r.groups[it->second].images;
+    return it->second;
+  };
+
+  std::vector<std::pair<size_t, ImageMetadata>> anonymous;
+  for (size_t k = 0; k < files.size(); ++k) {
+    IngestedImage im;
+    im.name = files[k].filename().string();
+    ImageMetadata m;
+    try {
+      m = ReadImageMetadata(files[k]);
+    } catch (const IoError& e) {
+      im.problem = std::string("unreadable: ") + e.what();
+      r.warnings.push_back(std::string(e.what()) + "; skipped");
+      r.images.push_back(im);
+      continue;
+    }
+    im.usable = true;
+    im.width = m.width;
+    im.height = m.height;
+    std::tie(im.working_width, im.working_height) = WorkingImageSize(m.width, m.height, o.max_dimension);
+    im.scale = static_cast<double>(m.width) / im.working_width;
+    im.make = m.make;
+    im.model = m.model;
+    im.focal_mm = m.focal_mm;
+    im.relative_altitude_m = m.relative_altitude_m;
+    im.gimbal_pitch_deg = m.gimbal_pitch_deg;
+    im.gimbal_yaw_deg = m.gimbal_yaw_deg;
+    im.gps = FixOf(im.name, m, csv, o);
+    if (im.gps) {
+      ++r.images_with_gps;
+    } else {
+      r.warnings.push_back(im.name + ": no GPS position (EXIF or CSV)");
+    }
+    // A photo that says nothing of its camera is placed once every photo is read.
+    if (m.make.empty() && m.model.empty() && !m.focal_mm && !m.focal_35mm) {
+      anonymous.push_back({r.images.size(), m});
+    } else {
+      std::ostringstream key;
+      key << m.make << "|" << m.model << "|" << std::setprecision(4) << m.focal_mm.value_or(0.0) << "|"
+          << im.working_width << "x" << im.working_height;
+      im.group = group_for(key.str(), m, im.working_width, im.working_height);
+    }
+    r.images.push_back(im);
+    ReportProgress(progress, static_cast<double>(k + 1) / files.size(), im.name);
+  }
+  for (const auto& [index, m] : anonymous) {
+    IngestedImage& im = r.images[index];
+    int match = -1, count = 0;
+    for (size_t g = 0; g < r.groups.size(); ++g) {
+      if (r.groups[g].working_width == im.working_width && r.groups[g].working_height == im.working_height) {
+        match = static_cast<int>(g);
+        ++count;
+      }
+    }
+    if (count == 1) {
+      im.group = match;
+      ++r.groups[match].images;
+      r.warnings.push_back(im.name + ": no EXIF camera information; assumed to be the " + r.groups[match].make +
+                           " " + r.groups[match].model + " of the other photos of this size");
+    } else {
+      std::ostringstream key;
+      key << "unknown camera|" << im.working_width << "x" << im.working_height;
+      im.group = group_for(key.str(), m, im.working_width, im.working_height);
+    }
+  }
+  return r;
+}
+
+json ToJson(const IngestRecord& r) {
+  json images = json::array();
+  for (const IngestedImage& i : r.images) {
+    json im;
+    im["name"] = i.name;
+    im["usable"] = i.usable;
+    if (!i.usable) {
+      im["problem"] = i.problem;
+      images.push_back(im);
+      continue;
+    }
+    im["width"] = i.width;
+    im["height"] = i.height;
+    im["working_width"] = i.working_width;
+    im["working_height"] = i.working_height;
+    im["scale"] = i.scale;
+    im["make"] = i.make;
+    im["model"] = i.model;
+    if (i.focal_mm) im["focal_mm"] = *i.focal_mm;
+    if (i.relative_altitude_m) im["relative_altitude_m"] = *i.relative_altitude_m;
+    if (i.gimbal_pitch_deg) im["gimbal_pitch_deg"] = *i.gimbal_pitch_deg;
+    if (i.gimbal_yaw_deg) im["gimbal_yaw_deg"] = *i.gimbal_yaw_deg;
+    if (i.gps) {
+      im["gps"] = {{"lat_deg", i.gps->position.lat_deg}, {"lon_deg", i.gps->position.lon_deg},
+                   {"h_m", i.gps->position.h_m},         {"sigma_h_m", i.gps->sigma_h_m},
+                   {"sigma_v_m", i.gps->sigma_v_m},       {"source", i.gps->source}};
+    } else {
+      im["gps"] = nullptr;
+    }
+    im["group"] = i.group;
+    images.push_back(im);
+  }
+  json groups = json::array();
+  for (const CameraGroup& g : r.groups) {
+    groups.push_back({{"key", g.key},
+                      {"make", g.make},
+                      {"model", g.model},
+                      {"working_width", g.working_width},
+                      {"working_height", g.working_height},
+                      {"camera_model", "BROWN"},
+                      {"params", g.camera.params},
+                      {"focal_source", g.focal_source},
+                      {"focal_measured", g.focal_measured},
+                      {"images", g.images}});
+  }
+  json doc;
+  doc["schema_version"] = IngestRecord::kSchemaVersion;
+  doc["images_dir"] = r.images_dir.string();
+  doc["options"] = r.options;
+  doc["working_max_dimension"] = r.working_max_dimension;
+  doc["images"] = images;
+  doc["groups"] = groups;
+  doc["warnings"] = r.warnings;
+  doc["images_with_gps"] = r.images_with_gps;
+  return doc;
+}
+
+IngestRecord IngestRecordFromJson(const json& doc, const std::string& path) {
+  const int version = doc.is_object() ? doc.value("schema_version", 1) : 0;
+  if (version < 1 || version > IngestRecord::kSchemaVersion) {
+    throw ParseError(path, 0,
+                     "not an ingest record of schema 1.." + std::to_string(IngestRecord::kSchemaVersion) +
+                         " (schema_version " + std::to_string(version) + "): delete it to rerun the ingest stage");
+  }
+  IngestRecord r;
+  try {
+    r.images_dir = doc.value("images_dir", std::string());
+    r.working_max_dimension = doc.value("working_max_dimension", 0);
+    r.options = doc.value("options", json());
+    r.images_with_gps = doc.value("images_with_gps", 0);
+    for (const json& w : doc.value("warnings", json::array())) r.warnings.push_back(w.get<std::string>());
+    for (const json& g : doc.at("groups")) {
+      CameraGroup c;
+      c.key = g.value("key", std::string());
+      c.make = g.value("make", std::string());
+      c.model = g.value("model", std::string());
+      c.working_width = g.at("working_width");
+      c.working_height = g.at("working_height");
+      c.camera.id = static_cast<int>(r.groups.size()) + 1;
+      c.camera.model = CameraModelId::kBrown;
+      c.camera.width = c.working_width;
+      c.camera.height = c.working_height;
+      c.camera.params = g.at("params").get<std::vector<double>>();
+      c.focal_source = g.value("focal_source", std::string());
+      // Schema 1 kept only the sentence; its measured rules both began so.
+      c.focal_measured = g.contains("focal_measured") ? g.at("focal_measured").get<bool>()
+                                                      : c.focal_source.rfind("EXIF focal length", 0) == 0;
+      c.images = g.value("images", 0);
+      r.groups.push_back(c);
+    }
+    for (const json& j : doc.at("images")) {
+      IngestedImage im;
+      im.name = j.at("name");
+      im.usable = j.at("usable");
+      im.problem = j.value("problem", std::string());
+      im.width = j.value("width", 0);
+      im.height = j.value("height", 0);
+      im.working_width = j.value("working_width", 0);
+      im.working_height = j.value("working_height", 0);
+      im.scale = j.value("scale", 1.0);
+      im.make = j.value("make", std::string());
+      im.model = j.value("model", std::string());
+      auto opt = [&j](const char* key) -> std::optional<double> {
+        if (j.contains(key) && j.at(key).is_number()) return j.at(key).get<double>();
+        return std::nullopt;
+      };
+      im.focal_mm = opt("focal_mm");
+      im.relative_altitude_m = opt("relative_altitude_m");
+      im.gimbal_pitch_deg = opt("gimbal_pitch_deg");
+      im.gimbal_yaw_deg = opt("gimbal_yaw_deg");
+      if (j.contains("gps") && !j.at("gps").is_null()) {
+        const json& g = j.at("gps");
+        GpsFix f;
+        f.position = {g.at("lat_deg"), g.at("lon_deg"), g.at("h_m")};
+        f.sigma_h_m = g.at("sigma_h_m");
+        f.sigma_v_m = g.at("sigma_v_m");
+        f.source = g.at("source");
+        im.gps = f;
+      }
+      im.group = j.value("group", -1);
+      if (im.usable && (im.group < 0 || im.group >= static_cast<int>(r.groups.size()))) {
+        throw ParseError(path, 0, "image '" + im.name + "' names camera group " + std::to_string(im.group) +
+                                      " of " + std::to_string(r.groups.size()) +
+                                      ": delete it to rerun the ingest stage");
+      }
+      r.images.push_back(im);
+    }
+  } catch (const json::exception& e) {
+    throw ParseError(path, 0, std::string("not a complete ingest record (") + e.what() +
+                                  "): delete it to rerun the ingest stage");
+  }
+  return r;
+}
+
+}  // namespace aerotri
