@@ -9,13 +9,36 @@
 # PUBLIC_LINK_LIBS / PRIVATE_LINK_LIBS split). The folder and its aerotri
 # dependencies are recorded for aerotri_check_layering(), which refuses a
 # cycle and any #include of a folder the target does not link.
+#
+# Unless NO_INSTALL is given, the library and its folder's headers are
+# installed (headers under include/aerotri/<folder>, so the same #include
+# lines work for a consumer) and exported as aerotri::<name> in the
+# aerotriTargets set that aerotriConfig.cmake loads.
 function(aerotri_add_library name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "NO_INSTALL" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
   add_library(aerotri_${name} STATIC ${ARG_SOURCES})
   add_library(aerotri::${name} ALIAS aerotri_${name})
-  target_include_directories(aerotri_${name} PUBLIC ${PROJECT_SOURCE_DIR})
+  target_include_directories(aerotri_${name} PUBLIC
+    $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}/aerotri>)
   target_link_libraries(aerotri_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   aerotri_record_layer(aerotri::${name} ${ARG_PUBLIC_DEPS} ${ARG_PRIVATE_DEPS})
+  if(NOT ARG_NO_INSTALL)
+    aerotri_install_library(aerotri_${name} ${name})
+    file(RELATIVE_PATH folder ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR})
+    file(GLOB headers CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.h)
+    install(FILES ${headers} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/aerotri/${folder}
+            COMPONENT development)
+  endif()
+endfunction()
+
+# aerotri_install_library(<target> <export name>): installs <target> into the
+# aerotriTargets export set, where it is known as aerotri::<export name>.
+function(aerotri_install_library target export_name)
+  set_target_properties(${target} PROPERTIES EXPORT_NAME ${export_name})
+  install(TARGETS ${target} EXPORT aerotriTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT development
+          INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/aerotri)
 endfunction()
 
 # aerotri_record_layer(<target> <deps>...): one line of the layering manifest,

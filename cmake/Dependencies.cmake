@@ -12,15 +12,7 @@ find_package(CLI11 2 REQUIRED CONFIG)
 find_package(nlohmann_json 3 REQUIRED CONFIG)
 find_package(BZip2 REQUIRED)
 
-# Debian's GeographicLib ships only a find module, outside CMake's default path.
-list(APPEND CMAKE_MODULE_PATH /usr/share/cmake/geographiclib)
-find_package(GeographicLib 2 REQUIRED MODULE)
-if(NOT TARGET GeographicLib::GeographicLib)
-  add_library(GeographicLib::GeographicLib UNKNOWN IMPORTED)
-  set_target_properties(GeographicLib::GeographicLib PROPERTIES
-    IMPORTED_LOCATION "${GeographicLib_LIBRARIES}"
-    INTERFACE_INCLUDE_DIRECTORIES "${GeographicLib_INCLUDE_DIRS}")
-endif()
+include(AerotriFindGeographicLib)
 
 if(AEROTRI_BUILD_TESTS)
   find_package(GTest REQUIRED)

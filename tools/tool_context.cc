@@ -50,6 +50,9 @@ ProgressCallback ToolContext::Progress(const std::string& stage) const {
 }
 
 std::string VersionString() {
+  // libbz2 reports "1.0.8, 13-Jul-2019": keep the version, drop the date.
+  std::string bzip2 = BZ2_bzlibVersion();
+  bzip2 = bzip2.substr(0, bzip2.find(','));
   std::ostringstream out;
   out << "aerotri " << kAerotriVersion << " (ceres " << CERES_VERSION_STRING << ", eigen "
       << EIGEN_WORLD_VERSION << "." << EIGEN_MAJOR_VERSION << "." << EIGEN_MINOR_VERSION
@@ -57,7 +60,7 @@ std::string VersionString() {
       << GDALVersionInfo("RELEASE_NAME") << ", geographiclib "
       << GEOGRAPHICLIB_VERSION_STRING << ", cli11 " << CLI11_VERSION << ", nlohmann-json "
       << NLOHMANN_JSON_VERSION_MAJOR << "." << NLOHMANN_JSON_VERSION_MINOR << "."
-      << NLOHMANN_JSON_VERSION_PATCH << ", bzip2 " << BZ2_bzlibVersion() << ")";
+      << NLOHMANN_JSON_VERSION_PATCH << ", bzip2 " << bzip2 << ")";
   return out.str();
 }
 
