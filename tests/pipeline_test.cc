@@ -213,6 +213,15 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
   const Raster coarse = ReadRaster(o.workspace / "dsm_0.5m.tif");
   EXPECT_DOUBLE_EQ(coarse.geotransform[1], 0.5);
   EXPECT_NE(coarse.wkt.find("UTM zone 32N"), std::string::npos);
+  // --dsm-resolution 0 (the default): the dense stage's choice, twice the
+  // dense spacing, so the rebuilt DSM lands on the grid size of dsm.tif.
+  o.dsm_resolution_m = 0.0;
+  const auto automatic = RebuildDsm(o);
+  const Raster original = ReadRaster(o.workspace / "dsm.tif");
+  char automatic_name[64];
+  std::snprintf(automatic_name, sizeof automatic_name, "dsm_%gm.tif", original.geotransform[1]);
+  EXPECT_EQ(automatic.filename().string(), automatic_name);
+  EXPECT_DOUBLE_EQ(ReadRaster(automatic).geotransform[1], original.geotransform[1]);
   // aerotri check: the same check points give the same figures again.
   CheckSurvey(o);
   const auto after = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));

@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <iostream>
+#include <string>
 
 #include "libphoto/base/error.h"
 #include "tools/commands.h"
@@ -41,6 +42,20 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
+    if (app.get_subcommands().empty()) {
+      // No command recognised: name the word that was taken for one.
+      for (int i = 1; i < argc; ++i) {
+        const std::string word = argv[i];
+        if (word.empty() || word[0] == '-') continue;
+        std::string commands;
+        for (const CLI::App* sub : app.get_subcommands({})) {
+          commands += (commands.empty() ? "" : ", ") + sub->get_name();
+        }
+        std::cerr << "aerotri: unknown command '" << word << "'; the commands are " << commands
+                  << " (aerotri --help)\n";
+        return 2;
+      }
+    }
     app.exit(e);
     return 2;
   }

@@ -23,48 +23,88 @@ void AddDsmOptions(CLI::App* cmd, RunArgs* a) {
   cmd->add_flag("--cog", a->cog, "Write the DSM as a Cloud-Optimised GeoTIFF");
 }
 
-void AddPhotoOptions(CLI::App* cmd, RunArgs* a, bool images_positional) {
+void AddGcpPixelOriginOption(CLI::App* cmd, RunArgs* a) {
+  cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "Pixel convention of GCP files: centre (OpenDroneMap / OpenSfM: integers at pixel centres) or corner (COLMAP: top-left pixel centre at 0.5, 0.5)")
+      ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
+}
+
+// The options a stage reads, as flags: a stage subcommand offers (and its
+// --help lists) only its own; `run` offers them all.
+enum OptionGroup : unsigned {
+  kIngestOptions = 1u << 0,
+  kFeatureOptions = 1u << 1,
+  kMatchOptions = 1u << 2,
+  kGeoreferenceOptions = 1u << 3,
+  kDenseOptions = 1u << 4,
+  kThreadsOption = 1u << 5,
+  kAllOptions = ~0u,
+};
+
+void AddWorkspaceOption(CLI::App* cmd, std::string* workspace, bool must_exist) {
+  CLI::Option* opt = cmd->add_option("--output,-o", *workspace,
+                                     must_exist ? "Survey workspace (the --output folder of aerotri run)"
+                                                : "Survey workspace (output folder)")
+                         ->required();
+  if (must_exist) opt->check(CLI::ExistingDirectory);
+}
+
+void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned groups) {
   if (images_positional) {
     cmd->add_option("images", a->images_dir, "Folder of photos (.jpg, .jpeg, .tif)")
         ->required()->check(CLI::ExistingDirectory);
   }
-  cmd->add_option("--output,-o", a->output, "Workspace / output folder")->required();
+  AddWorkspaceOption(cmd, &a->output, /*must_exist=*/false);
   cmd->add_flag("--force", a->force, "Redo stages whose product exists (default: resume)");
-  cmd->add_flag("--keep-going", a->keep_going,
-                "Write the cloud and DSM even when the adjustment failed its quality gates (the report "
-                "says failed and the exit code stays 1)");
-  cmd->add_option("--threads", a->threads, "Threads (0 = all cores)")->check(CLI::NonNegativeNumber)->capture_default_str();
-  cmd->add_option("--gps-altitude", a->gps_altitude,
-                  "Reference of EXIF / CSV GPS altitudes: egm96 (EXIF's 'above sea level') or ellipsoid")
-      ->check(CLI::IsMember({"egm96", "ellipsoid"}))->capture_default_str();
-  cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--gps-csv", a->gps_csv, "Camera positions name,lat,lon,alt[,sigma_h,sigma_v]; overrides EXIF");
-  cmd->add_option("--max-dimension", a->max_dimension,
-                  "Working resolution: longer image side (pixels) for features and adjustment")
-      ->check(CLI::Range(200, 20000))->capture_default_str();
-  cmd->add_option("--max-features", a->max_features, "Features per image (spread over the image)")
-      ->check(CLI::Range(100, 200000))->capture_default_str();
-  cmd->add_option("--gps-neighbours", a->gps_neighbours, "Images matched with each image's nearest GPS neighbours")
-      ->check(CLI::Range(1, 1000))->capture_default_str();
-  cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
-  cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format); never used in the adjustment");
-  cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "Pixel convention of GCP files: centre (OpenDroneMap / OpenSfM: integers at pixel centres) or corner (COLMAP: top-left pixel centre at 0.5, 0.5)")
-      ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
-  cmd->add_option("--gcp-sigma-h", a->gcp_sigma_h_m, "Control horizontal sigma (metres) when the file gives none")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine, &a->tie_sigma_px, &a->mark_sigma_px);
-  cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
-  cmd->add_option("--dense-resolution", a->dense_resolution_m,
-                  "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
-      ->check(CLI::NonNegativeNumber)->capture_default_str();
-  cmd->add_option("--dense-min-views", a->dense_min_views,
-                  "Depth maps (two per photo) that must agree on a dense point: more is cleaner, fewer covers "
-                  "more of hard surfaces such as tree canopy")
-      ->check(CLI::Range(1, 50))->capture_default_str();
-  AddDsmOptions(cmd, a);
+  if (groups & kDenseOptions) {
+    cmd->add_flag("--keep-going", a->keep_going,
+                  "Write the cloud and DSM even when the adjustment failed its quality gates (the report "
+                  "says failed and the exit code stays 1)");
+  }
+  if (groups & kThreadsOption) {
+    cmd->add_option("--threads", a->threads, "Threads (0 = all cores)")->check(CLI::NonNegativeNumber)->capture_default_str();
+  }
+  if (groups & kIngestOptions) {
+    cmd->add_option("--gps-altitude", a->gps_altitude,
+                    "Reference of EXIF / CSV GPS altitudes: egm96 (EXIF's 'above sea level') or ellipsoid")
+        ->check(CLI::IsMember({"egm96", "ellipsoid"}))->capture_default_str();
+    cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--gps-csv", a->gps_csv, "Camera positions name,lat,lon,alt[,sigma_h,sigma_v]; overrides EXIF");
+  }
+  if (groups & (kIngestOptions | kFeatureOptions | kGeoreferenceOptions)) {
+    cmd->add_option("--max-dimension", a->max_dimension,
+                    "Working resolution: longer image side (pixels) for features and adjustment")
+        ->check(CLI::Range(200, 20000))->capture_default_str();
+  }
+  if (groups & kFeatureOptions) {
+    cmd->add_option("--max-features", a->max_features, "Features per image (spread over the image)")
+        ->check(CLI::Range(100, 200000))->capture_default_str();
+  }
+  if (groups & kMatchOptions) {
+    cmd->add_option("--gps-neighbours", a->gps_neighbours, "Images matched with each image's nearest GPS neighbours")
+        ->check(CLI::Range(1, 1000))->capture_default_str();
+  }
+  if (groups & kGeoreferenceOptions) {
+    cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
+    cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format); never used in the adjustment");
+    AddGcpPixelOriginOption(cmd, a);
+    cmd->add_option("--gcp-sigma-h", a->gcp_sigma_h_m, "Control horizontal sigma (metres) when the file gives none")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine, &a->tie_sigma_px, &a->mark_sigma_px);
+    cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
+  }
+  if (groups & kDenseOptions) {
+    cmd->add_option("--dense-resolution", a->dense_resolution_m,
+                    "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    cmd->add_option("--dense-min-views", a->dense_min_views,
+                    "Depth maps (two per photo) that must agree on a dense point: more is cleaner, fewer covers "
+                    "more of hard surfaces such as tree canopy")
+        ->check(CLI::Range(1, 50))->capture_default_str();
+    AddDsmOptions(cmd, a);
+  }
 }
 
 }  // namespace
@@ -74,32 +114,36 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
     const char* name;
     const char* help;
     bool needs_images;
+    unsigned options;
   };
   const Stage stages[] = {
-      {"run", "Photos to an adjusted, georeferenced sparse survey: ingest, features, match, "
-              "reconstruct, georeference (each stage resumes)", true},
-      {"ingest", "Read EXIF / XMP of a folder of photos into OUTPUT/ingest.json", true},
-      {"features", "Extract SIFT features of the ingested photos (OUTPUT/features/)", false},
-      {"match", "Select, match and verify image pairs (OUTPUT/matches.bin)", false},
-      {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false},
+      {"run", "Photos to an adjusted, georeferenced survey and its deliverables: ingest, features, match, "
+              "reconstruct, georeference, dense (cloud, DSM), report (each stage resumes)",
+       true, kAllOptions},
+      {"ingest", "Read EXIF / XMP of a folder of photos into OUTPUT/ingest.json", true, kIngestOptions},
+      {"features", "Extract SIFT features of the ingested photos (OUTPUT/features/)", false,
+       kFeatureOptions | kThreadsOption},
+      {"match", "Select, match and verify image pairs (OUTPUT/matches.bin)", false, kMatchOptions | kThreadsOption},
+      {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false, kThreadsOption},
       {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
-                       "OUTPUT/report.json", false},
-      {"dense", "Dense matching and the deliverables: OUTPUT/cloud.las, cloud.ply, dsm.tif", false},
-      {"report", "Complete report.json (DSM at check points, coverage) and write report.html", false},
+                       "OUTPUT/report.json", false, kGeoreferenceOptions | kThreadsOption},
+      {"dense", "Dense matching and the deliverables: OUTPUT/cloud.las, cloud.ply, dsm.tif", false,
+       kDenseOptions | kThreadsOption},
+      {"report", "Complete report.json (DSM at check points, coverage) and write report.html", false, 0u},
   };
   for (const Stage& s : stages) {
     auto a = std::make_shared<RunArgs>();
     a->stage = s.name;
     CLI::App* cmd = app.add_subcommand(s.name, s.help);
-    AddPhotoOptions(cmd, a.get(), s.needs_images);
+    AddStageOptions(cmd, a.get(), s.needs_images, s.options);
     cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
   }
   {
     auto a = std::make_shared<RunArgs>();
     a->stage = "dem";
     CLI::App* cmd = app.add_subcommand("dem", "Rebuild a DSM from an existing survey's cloud.las at another resolution");
-    cmd->add_option("--survey", a->output, "Survey folder (the output of aerotri run)")->required()->check(CLI::ExistingDirectory);
-    cmd->add_option("--output,-o", a->dem_output, "DSM file to write (default: SURVEY/dsm_<resolution>m.tif)");
+    AddWorkspaceOption(cmd, &a->output, /*must_exist=*/true);
+    cmd->add_option("--dsm-output", a->dem_output, "DSM file to write (default: OUTPUT/dsm_<resolution>m.tif)");
     AddDsmOptions(cmd, a.get());
     cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
   }
@@ -107,11 +151,10 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
     auto a = std::make_shared<RunArgs>();
     a->stage = "check";
     CLI::App* cmd = app.add_subcommand(
-        "check", "Accuracy of an existing survey against check points: rewrites SURVEY/report.json and report.html");
-    cmd->add_option("--survey", a->output, "Survey folder (the output of aerotri run)")->required()->check(CLI::ExistingDirectory);
+        "check", "Accuracy of an existing survey against check points: rewrites OUTPUT/report.json and report.html");
+    AddWorkspaceOption(cmd, &a->output, /*must_exist=*/true);
     cmd->add_option("--checkpoints", a->checkpoints, "Check points (OpenDroneMap gcp_list.txt format)")->required();
-    cmd->add_option("--gcp-pixel-origin", a->gcp_pixel_origin, "Pixel convention of GCP files: centre (OpenDroneMap / OpenSfM: integers at pixel centres) or corner (COLMAP: top-left pixel centre at 0.5, 0.5)")
-        ->check(CLI::IsMember({"corner", "centre", "center"}))->capture_default_str();
+    AddGcpPixelOriginOption(cmd, a.get());
     cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
   }
 }
@@ -172,12 +215,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   } else if (s == "report") {
     RunReportStage(o);
   } else if (s == "dem") {
-    if (!(a.dsm_resolution_m > 0)) throw InvalidArgument("dem: --dsm-resolution (metres) is required");
-    char name[64];
-    std::snprintf(name, sizeof(name), "dsm_%gm.tif", a.dsm_resolution_m);
-    const std::filesystem::path out = a.dem_output.empty() ? std::filesystem::path(a.output) / name
-                                                           : std::filesystem::path(a.dem_output);
-    RebuildDsm(o, out);
+    const std::filesystem::path out = RebuildDsm(o, a.dem_output);
     *ctx.out << "dsm: " << out.string() << "\n";
     return 0;
   } else if (s == "check") {

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 
 #include "georef/crs.h"
@@ -287,17 +288,33 @@ bool RunReportStage(const PipelineOptions& o) {
   return true;
 }
 
-void RebuildDsm(const PipelineOptions& o, const fs::path& path) {
+fs::path RebuildDsm(const PipelineOptions& o, fs::path path) {
   const json report = ReadJson(o.workspace / "report.json", "georeference");
+  double resolution = o.dsm_resolution_m;
+  if (!(resolution > 0)) {
+    const json dense = ReadJson(o.workspace / "dense.json", "dense");
+    const double spacing = dense.value("resolution_m", 0.0);
+    if (!(spacing > 0)) {
+      throw ParseError((o.workspace / "dense.json").string(), 0,
+                       "no positive 'resolution_m' (the dense spacing) to choose the DSM resolution from; "
+                       "give --dsm-resolution");
+    }
+    resolution = DsmResolution(o, spacing);
+  }
+  if (path.empty()) {
+    char name[64];
+    std::snprintf(name, sizeof(name), "dsm_%gm.tif", resolution);
+    path = o.workspace / name;
+  }
   const GeoFrame g = FrameOf(report);
   const CrsCloud cloud = ReadLas(o.workspace / "cloud.las");
   if (cloud.xyz.empty()) throw InvalidArgument((o.workspace / "cloud.las").string() + ": no points");
   json info;
-  WriteDsm(cloud.xyz, g.crs, o.dsm_resolution_m > 0 ? o.dsm_resolution_m : 0.1, o, report.value("status", ""), path,
-           &info);
+  WriteDsm(cloud.xyz, g.crs, resolution, o, report.value("status", ""), path, &info);
   Log(o, "dem: " + path.string() + " " + std::to_string(info["width"].get<int>()) + " x " +
              std::to_string(info["height"].get<int>()) + " cells, " +
              std::to_string(100.0 * info["filled_fraction"].get<double>()) + " % with data");
+  return path;
 }
 
 void CheckSurvey(const PipelineOptions& o) {

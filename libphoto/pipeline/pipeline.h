@@ -93,8 +93,10 @@ std::string RunPipeline(const PipelineOptions& options);
 // report.json's status in a workspace, or "" before the georeference stage.
 std::string SurveyStatusOf(const std::filesystem::path& workspace);
 
-// Rebuilds the DSM from OUTPUT/cloud.las at another resolution into path.
-void RebuildDsm(const PipelineOptions& options, const std::filesystem::path& path);
+// Rebuilds the DSM from OUTPUT/cloud.las at options.dsm_resolution_m (0: twice
+// the dense spacing recorded in dense.json, as the dense stage chooses) into
+// path, by default OUTPUT/dsm_<resolution>m.tif. Returns the path written.
+std::filesystem::path RebuildDsm(const PipelineOptions& options, std::filesystem::path path = {});
 // Re-evaluates check points (options.checkpoints) on an existing survey and
 // rewrites report.json and report.html.
 void CheckSurvey(const PipelineOptions& options);

@@ -1,6 +1,6 @@
 # Runs one aerotri command and checks its exit code and output, so that CLI
 # behaviour is tested as data in ctest (see tests/CMakeLists.txt).
-#   -DEXE=path -DARGS=a|b|c -DCODE=n [-DSTDOUT=regex] [-DSTDERR=regex]
+#   -DEXE=path -DARGS=a|b|c -DCODE=n [-DSTDOUT=regex] [-DSTDOUT_NOT=regex] [-DSTDERR=regex]
 #   [-DSTDERR_EMPTY=1] [-DWORKDIR=dir]
 string(REPLACE "|" ";" arg_list "${ARGS}")
 if(NOT WORKDIR)
@@ -14,6 +14,9 @@ if(NOT code STREQUAL CODE)
 endif()
 if(DEFINED STDOUT AND NOT out MATCHES "${STDOUT}")
   message(FATAL_ERROR "stdout does not match '${STDOUT}':\n${out}")
+endif()
+if(DEFINED STDOUT_NOT AND out MATCHES "${STDOUT_NOT}")
+  message(FATAL_ERROR "stdout should not match '${STDOUT_NOT}':\n${out}")
 endif()
 if(DEFINED STDERR AND NOT err MATCHES "${STDERR}")
   message(FATAL_ERROR "stderr does not match '${STDERR}':\n${err}")
