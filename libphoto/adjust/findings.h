@@ -24,6 +24,8 @@
 //   DOME                       warning  vertical residuals domed across the block
 //   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model
+//   NOTHING_REGISTERED         error    fewer than two photos in the model: no survey
+//   NOT_GEOREFERENCED          warning  no GPS and no control: arbitrary frame and scale
 //   INPUT                      warning  a problem with an input file (skipped)
 
 #include <string>

@@ -411,6 +411,18 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
               " photos are not in the model (report images.per_image says why): " + JoinNames(unregistered),
           unregistered));
     }
+    if (registered < 2) {
+      findings.push_back(Finding::Error(
+          "NOTHING_REGISTERED",
+          std::to_string(registered) + " of " + std::to_string(ingest.names.size()) +
+              " photos could be oriented: a survey needs at least two overlapping photos (report "
+              "images.per_image and matching say why)",
+          unregistered));
+    } else if (!report["georeferenced"].get<bool>()) {
+      findings.push_back(Finding::Warning(
+          "NOT_GEOREFERENCED", "no GPS and no control points: the survey is in an arbitrary frame and scale, "
+                               "with no CRS, cloud or DSM"));
+    }
     for (const auto& w : report["ingest_warnings"]) findings.push_back(Finding::Warning("INPUT", w.get<std::string>()));
     const auto append = [&](const char* key, Severity severity) {
       for (const json& f : report.value(key, json::array())) {

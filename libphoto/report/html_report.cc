@@ -36,6 +36,12 @@ double Get(const json& j, const char* key, double fallback = NAN) {
   return j.contains(key) && j[key].is_number() ? j[key].get<double>() : fallback;
 }
 
+// j[key] when it is a string; fallback when it is absent, null (an
+// un-georeferenced survey's "crs") or of another type.
+std::string Text(const json& j, const char* key, const std::string& fallback = "") {
+  return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : fallback;
+}
+
 // A horizontal bar chart of one or more series per label.
 std::string BarChart(const std::vector<std::string>& labels, const std::vector<std::vector<double>>& series,
                      const std::vector<std::string>& names, const std::vector<std::string>& colours,
@@ -92,14 +98,14 @@ std::string PointTable(const json& group, const char* title) {
   h << "<table><tr><th>name</th><th>images</th><th>dx (m)</th><th>dy (m)</th><th>dz (m)</th><th>3D (m)</th>"
        "<th>reprojection RMS (px)</th></tr>";
   for (const auto& p : group["points"]) {
-    h << "<tr><td>" << Escape(p.value("name", "")) << "</td><td>" << p.value("images", 0) << "</td>";
+    h << "<tr><td>" << Escape(Text(p, "name", "")) << "</td><td>" << p.value("images", 0) << "</td>";
     if (p.value("solved", false)) {
       const double dx = Get(p, "dx_m"), dy = Get(p, "dy_m"), dz = Get(p, "dz_m");
       h << "<td>" << Num(dx) << "</td><td>" << Num(dy) << "</td><td>" << Num(dz) << "</td><td>"
         << Num(std::sqrt(dx * dx + dy * dy + dz * dz)) << "</td><td>" << Num(Get(p, "reprojection_rms_px"), 2)
         << "</td>";
     } else {
-      h << "<td colspan='5'>not solved: " << Escape(p.value("why_not", "")) << "</td>";
+      h << "<td colspan='5'>not solved: " << Escape(Text(p, "why_not", "")) << "</td>";
     }
     h << "</tr>";
   }
@@ -117,13 +123,13 @@ std::string SurveyMap(const json& r) {
   };
   std::vector<Mark> marks;
   for (const auto& c : r.value("cameras", json::array())) {
-    if (c.contains("x")) marks.push_back({c["x"], c["y"], 0, 0, c.value("name", ""), "camera"});
+    if (c.contains("x")) marks.push_back({c["x"], c["y"], 0, 0, Text(c, "name", ""), "camera"});
   }
   for (const char* group : {"control_points", "check_points"}) {
     if (!r.contains(group)) continue;
     for (const auto& p : r[group].value("points", json::array())) {
       if (!p.value("solved", false) || !p.contains("surveyed")) continue;
-      marks.push_back({p["surveyed"][0], p["surveyed"][1], p["dx_m"], p["dy_m"], p.value("name", ""),
+      marks.push_back({p["surveyed"][0], p["surveyed"][1], p["dx_m"], p["dy_m"], Text(p, "name", ""),
                        std::string(group) == "control_points" ? "control" : "check"});
     }
   }
@@ -246,7 +252,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   h << "<h1>aerotri survey report</h1>";
   {
     // The status first: a failed survey must not look like any other.
-    const std::string status = r.value("status", std::string("unknown"));
+    const std::string status = Text(r, "status", "unknown");
     const char* colour = status == "ok" ? "#2a7a3a" : status == "warnings" ? "#a06000" : "#b00020";
     h << "<div style='border:2px solid " << colour << ";border-radius:6px;padding:8px 14px;margin:1em 0'>"
       << "<b style='color:" << colour << ";font-size:20px'>status: " << Escape(status) << "</b>";
@@ -257,8 +263,8 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     if (!errors.empty()) {
       h << "<ul>";
       for (const auto& e : errors) {
-        h << "<li style='color:" << colour << "'>" << Escape(e.value("code", "")) << ": "
-          << Escape(e.value("message", "")) << "</li>";
+        h << "<li style='color:" << colour << "'>" << Escape(Text(e, "code", "")) << ": "
+          << Escape(Text(e, "message", "")) << "</li>";
       }
       h << "</ul>";
     }
@@ -277,18 +283,18 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     << "<div class='card'>GSD<b>" << Num(Get(r, "gsd_m", NAN) * 100, 1) << " cm</b></div>"
     << "<div class='card'>check points RMSE 3D<b>" << Num(Get(r.value("check_points", json::object()), "rmse_3d_m"), 3)
     << " m</b></div>"
-    << "<div class='card'>CRS<b style='font-size:14px'>" << Escape(r.value("crs_name", r.value("crs", std::string("none"))))
+    << "<div class='card'>CRS<b style='font-size:14px'>" << Escape(Text(r, "crs_name", Text(r, "crs", "none")))
     << "</b></div></div>";
-  h << "<p>CRS " << Escape(r.value("crs", std::string("–"))) << " (" << Escape(r.value("crs_source", std::string("")))
+  h << "<p>CRS " << Escape(Text(r, "crs", "–")) << " (" << Escape(Text(r, "crs_source", ""))
     << "); adjustment in a local ENU frame at lat " << Num(Get(r.value("enu_origin", json::object()), "lat_deg"), 7)
     << ", lon " << Num(Get(r.value("enu_origin", json::object()), "lon_deg"), 7) << ", h "
     << Num(Get(r.value("enu_origin", json::object()), "h_m"), 2) << " m (WGS84 ellipsoid). Datum: "
-    << Escape(adj.value("datum", std::string("–"))) << ".</p>";
+    << Escape(Text(adj, "datum", "–")) << ".</p>";
 
   h << "<h2>Accuracy</h2>";
   if (r.contains("asprs")) {
     const auto& a = r["asprs"];
-    h << "<table><tr><th>ASPRS statement (" << Escape(a.value("based_on", std::string(""))) << ")</th><th>value (m)</th></tr>"
+    h << "<table><tr><th>ASPRS statement (" << Escape(Text(a, "based_on", "")) << ")</th><th>value (m)</th></tr>"
       << "<tr><td>2014: horizontal accuracy at 95 % (1.7308 RMSE<sub>r</sub>)</td><td>"
       << Num(Get(a["edition_2014"], "horizontal_accuracy_95_m")) << "</td></tr>"
       << "<tr><td>2014: non-vegetated vertical accuracy at 95 % (1.96 RMSE<sub>z</sub>)</td><td>"
@@ -303,7 +309,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     const auto& d = r["dsm"]["check_points"];
     h << "<h3>DSM at the check points</h3><table><tr><th>name</th><th>DSM − surveyed z (m)</th></tr>";
     for (const auto& p : d.value("points", json::array())) {
-      h << "<tr><td>" << Escape(p.value("name", "")) << "</td><td>"
+      h << "<tr><td>" << Escape(Text(p, "name", "")) << "</td><td>"
         << (p.contains("dz_m") ? Num(Get(p, "dz_m")) : std::string("outside the DSM")) << "</td></tr>";
     }
     h << "<tr class='total'><td>RMSE (" << d.value("count", 0) << " points)</td><td>" << Num(Get(d, "rmse_z_m"))
@@ -315,7 +321,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   std::vector<double> de, dn, du;
   for (const auto& c : r.value("cameras", json::array())) {
     if (!c.value("gps_prior", false)) continue;
-    names.push_back(c.value("name", ""));
+    names.push_back(Text(c, "name", ""));
     de.push_back(Get(c, "de_m"));
     dn.push_back(Get(c, "dn_m"));
     du.push_back(Get(c, "du_m"));
@@ -327,7 +333,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   std::vector<double> rms, pairs;
   for (const auto& im : images.value("per_image", json::array())) {
     if (!im.value("registered", false)) continue;
-    inames.push_back(im.value("name", ""));
+    inames.push_back(Text(im, "name", ""));
     rms.push_back(Get(im, "reprojection_rms_px"));
   }
   h << "<h2>Reprojection error per image</h2>"
@@ -335,10 +341,10 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   std::vector<std::string> mnames;
   if (r.contains("matching")) {
     for (const auto& im : r["matching"].value("per_image", json::array())) {
-      mnames.push_back(im.value("name", ""));
+      mnames.push_back(Text(im, "name", ""));
       pairs.push_back(im.value("verified_pairs", 0));
     }
-    h << "<h2>Image overlap</h2><p>" << Escape(r["matching"].value("strategy", std::string(""))) << ": "
+    h << "<h2>Image overlap</h2><p>" << Escape(Text(r["matching"], "strategy", "")) << ": "
       << r["matching"].value("verified_pairs", 0) << " verified pairs of " << r["matching"].value("candidate_pairs", 0)
       << " candidates.</p>" << BarChart(mnames, {pairs}, {"verified pairs"}, {"#e90"}, "image pairs");
   }
@@ -346,29 +352,29 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   h << "<h2>Elevation model</h2>";
   if (!hillshade_png.empty()) {
     const auto& d = r.value("dsm", json::object());
-    h << "<p>" << Escape(d.value("file", std::string("dsm.tif"))) << ": " << d.value("width", 0) << " x "
+    h << "<p>" << Escape(Text(d, "file", "dsm.tif")) << ": " << d.value("width", 0) << " x "
       << d.value("height", 0) << " cells of " << Num(Get(d, "resolution_m"), 3) << " m, "
       << Num(100.0 * Get(d, "filled_fraction", NAN), 1) << " % with data. Hillshade:</p>"
       << "<img class='dsm' alt='DSM hillshade' src='data:image/png;base64," << Base64(hillshade_png) << "'>";
   } else if (r.contains("dense") && r["dense"].contains("skipped")) {
-    h << "<p>No dense cloud or DSM: " << Escape(r["dense"]["skipped"].get<std::string>()) << ".</p>";
+    h << "<p>No dense cloud or DSM: " << Escape(Text(r["dense"], "skipped")) << ".</p>";
   } else {
     h << "<p>No DSM.</p>";
   }
   h << "<h2>Images</h2><table><tr><th>image</th><th>registered</th><th>GPS</th><th>RMS (px)</th><th>note</th></tr>";
   for (const auto& im : images.value("per_image", json::array())) {
-    h << "<tr><td>" << Escape(im.value("name", "")) << "</td><td>" << (im.value("registered", false) ? "yes" : "no")
+    h << "<tr><td>" << Escape(Text(im, "name", "")) << "</td><td>" << (im.value("registered", false) ? "yes" : "no")
       << "</td><td>" << (im.value("gps", false) ? "yes" : "no") << "</td><td>" << Num(Get(im, "reprojection_rms_px"), 2)
-      << "</td><td class='warn'>" << Escape(im.value("why_not", "")) << "</td></tr>";
+      << "</td><td class='warn'>" << Escape(Text(im, "why_not", "")) << "</td></tr>";
   }
   h << "</table>";
   // Findings (the warnings already hold the ingest ones) and the check stage's.
   std::vector<std::string> warnings;
   for (const auto& w : r.value("warnings", json::array())) {
     warnings.push_back(w.is_string() ? w.get<std::string>()
-                                     : w.value("code", "") + ": " + w.value("message", ""));
+                                     : Text(w, "code", "") + ": " + Text(w, "message", ""));
   }
-  for (const auto& w : r.value("check_warnings", json::array())) warnings.push_back(w.get<std::string>());
+  for (const auto& w : r.value("check_warnings", json::array())) warnings.push_back(w.is_string() ? w.get<std::string>() : w.dump());
   if (!warnings.empty()) {
     h << "<h2>Warnings</h2><ul>";
     for (const auto& w : warnings) h << "<li class='warn'>" << Escape(w) << "</li>";
