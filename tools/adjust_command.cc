@@ -10,6 +10,7 @@
 #include "georef/gcp_file.h"
 #include "libphoto/adjust/georeferencing.h"
 #include "libphoto/base/atomic_file.h"
+#include "libphoto/base/directory_lock.h"
 #include "libphoto/base/error.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/io/colmap_text.h"
@@ -81,6 +82,10 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   if (args.images_dir.empty() && args.gps_csv.empty() && args.gcp.empty()) {
     throw InvalidArgument("nothing to georeference with: give --images (EXIF GPS), --gps-csv "
                           "or --gcp");
+  }
+  const DirectoryLock lock(output);  // one process per output folder
+  for (const fs::path& p : RemoveStaleTemporaryFiles(output)) {
+    ctx.Info("removed " + p.string() + " (left by an interrupted run)");
   }
   GeoreferenceOptions options;
   options.output_crs = args.crs;

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "libphoto/base/atomic_file.h"
+#include "libphoto/base/directory_lock.h"
 #include "libphoto/base/error.h"
 #include "libphoto/pipeline/pipeline.h"
 #include "tools/commands.h"
@@ -160,6 +161,12 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
 }
 
 int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
+  // One process per workspace: a second one exits 1 at once, naming the
+  // holder. Holding the lock, anything a killed run left half-written is stale.
+  const DirectoryLock lock(a.output);
+  for (const std::filesystem::path& p : RemoveStaleTemporaryFiles(a.output)) {
+    ctx.Info("removed " + p.string() + " (left by an interrupted run)");
+  }
   PipelineOptions o;
   o.images_dir = a.images_dir;
   o.workspace = a.output;

@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 #include "libphoto/base/error.h"
@@ -20,6 +21,22 @@ fs::path TemporaryPathFor(const fs::path& path) {
   tmp += ".tmp." + std::to_string(::getpid()) + "." +
          std::to_string(counter.fetch_add(1));
   return tmp;
+}
+
+std::vector<fs::path> RemoveStaleTemporaryFiles(const fs::path& folder) {
+  static const std::regex temporary(R"(.*\.tmp\.[0-9]+\.[0-9]+(\.aux\.xml)?)");
+  static const std::regex gdal_work(R"(_[0-9]+_.*fill.*_work\.tif)");
+  std::vector<fs::path> removed;
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) return removed;
+  for (auto it = fs::recursive_directory_iterator(folder, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (!it->is_regular_file(ec)) continue;
+    const std::string name = it->path().filename().string();
+    if (std::regex_match(name, temporary) || std::regex_match(name, gdal_work)) removed.push_back(it->path());
+  }
+  for (const fs::path& p : removed) fs::remove(p, ec);
+  return removed;
 }
 
 void CommitTemporaryFile(const fs::path& temporary, const fs::path& path) {

@@ -9,6 +9,7 @@
 #include <functional>
 #include <ostream>
 #include <string>
+#include <vector>
 
 namespace aerotri {
 
@@ -27,6 +28,13 @@ void WriteTextFileAtomically(const std::filesystem::path& path,
 std::filesystem::path TemporaryPathFor(const std::filesystem::path& path);
 void CommitTemporaryFile(const std::filesystem::path& temporary,
                          const std::filesystem::path& path);
+
+// Removes, anywhere under folder, what a killed writer leaves behind: the
+// temporary files above (NAME.tmp.<pid>.<n>, with GDAL's NAME.tmp.<pid>.<n>.aux.xml)
+// and GDAL's fill-nodata work files (_<pid>_..fill.._work.tif). Only for a
+// folder this process holds a DirectoryLock on, where no other writer can be
+// at work. Returns the paths removed.
+std::vector<std::filesystem::path> RemoveStaleTemporaryFiles(const std::filesystem::path& folder);
 
 // Reads a whole file (throws IoError naming the path when it cannot).
 std::string ReadTextFile(const std::filesystem::path& path);

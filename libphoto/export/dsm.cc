@@ -65,7 +65,15 @@ Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& 
       throw IoError("DSM", "cannot fill the in-memory raster");
     }
     const double max_px = o.fill_max_distance_m / res;
-    if (GDALFillNodata(band, nullptr, max_px, 0, 0, nullptr, nullptr, nullptr) != CE_None) {
+    // GDAL puts its work files in CPL_TMPDIR, else the current directory.
+    std::error_code ec;
+    const std::filesystem::path work_dir =
+        o.work_dir.empty() ? std::filesystem::temp_directory_path(ec) : o.work_dir;
+    const std::string previous_tmpdir = CPLGetThreadLocalConfigOption("CPL_TMPDIR", "");
+    CPLSetThreadLocalConfigOption("CPL_TMPDIR", work_dir.string().c_str());
+    const CPLErr filled_ok = GDALFillNodata(band, nullptr, max_px, 0, 0, nullptr, nullptr, nullptr);
+    CPLSetThreadLocalConfigOption("CPL_TMPDIR", previous_tmpdir.empty() ? nullptr : previous_tmpdir.c_str());
+    if (filled_ok != CE_None) {
       throw IoError("DSM", std::string("GDALFillNodata failed: ") + CPLGetLastErrorMsg());
     }
     std::vector<float> filled_values(r.values.size());

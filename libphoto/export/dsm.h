@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+#include <filesystem>
+
 // Digital surface model from a point cloud in a projected output CRS: each
 // cell takes the median height of the points that fall in it (robust to the
 // odd stray point), holes are filled up to a distance with GDAL's inverse-
@@ -22,6 +24,9 @@ struct DsmOptions {
   double resolution_m = 0.1;       // cell size (CRS units)
   double fill_max_distance_m = 2.0;  // holes up to this far from data are filled; 0: none
   double nodata = -9999.0;
+  // Folder for GDAL's fill-nodata work files (large rasters); empty: the
+  // system's temporary folder. Never the current directory.
+  std::filesystem::path work_dir;
 };
 
 struct DsmSummary {

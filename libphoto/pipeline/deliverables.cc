@@ -70,6 +70,7 @@ void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double re
   DsmOptions d;
   d.resolution_m = resolution;
   d.fill_max_distance_m = o.dsm_fill_m;
+  d.work_dir = o.workspace;  // GDAL work files stay in the workspace
   DsmSummary summary;
   const Raster dsm = RasterizeDsm(xyz, crs.Wkt(), d, &summary);
   RasterWriteOptions w;
