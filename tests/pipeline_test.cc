@@ -207,6 +207,11 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
   o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
   RunPipeline(o);
   const auto before = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  // Provenance: a library caller is named as such; the options are those that ran.
+  EXPECT_EQ(before["provenance"]["software"], "aerotri (library)");
+  EXPECT_EQ(before["provenance"]["options"]["georeference"], before["georeference_options"]);
+  EXPECT_EQ(before["provenance"]["options"]["ingest"]["gps_altitude"], "egm96");
+  EXPECT_EQ(before["dense"]["options"]["dsm_fill_m"], o.dsm_fill_m);
   // aerotri dem: another resolution from cloud.las.
   o.dsm_resolution_m = 0.5;
   RebuildDsm(o, o.workspace / "dsm_0.5m.tif");

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
       "2 usage error."};
   app.name("aerotri");
   ToolContext ctx;
+  ctx.command_line.assign(argv, argv + argc);
   app.add_flag("--quiet,-q", ctx.quiet, "Silence progress on stderr");
   app.set_version_flag("--version", VersionString());
   app.require_subcommand(1);

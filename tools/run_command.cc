@@ -196,6 +196,8 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   ApplyRefineOption(o.georef.auto_refine ? "all" : a.refine, &o.georef.bundle);
   o.georef.bundle.observation_sigma_px = a.tie_sigma_px;
   o.georef.bundle.mark_sigma_px = a.mark_sigma_px;
+  o.software_version = VersionString();
+  o.command_line = ctx.command_line;
   o.progress = [&ctx](const std::string& stage) { return ctx.Progress(stage); };
   o.log = [&ctx](const std::string& message) {
     if (message.rfind("warning: ", 0) == 0) {

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "libphoto/base/progress.h"
 
@@ -18,6 +19,7 @@ struct ToolContext {
   std::ostream* out = &std::cout;  // data
   std::ostream* err = &std::cerr;  // progress and messages
   bool quiet = false;
+  std::vector<std::string> command_line;  // argv, recorded in report.json
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
 
   // One line of progress on stderr unless quiet.

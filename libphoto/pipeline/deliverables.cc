@@ -276,7 +276,8 @@ bool RunReportStage(const PipelineOptions& o) {
     const GeoFrame g = FrameOf(report);
     const Raster dsm = ReadRaster(o.workspace / "dsm.tif");
     report["dense"] = {{"points", dense["points"]}, {"resolution_m", dense["resolution_m"]},
-                       {"pairs", dense["pairs"]}, {"files", {"cloud.las", "cloud.ply"}}};
+                       {"pairs", dense["pairs"]}, {"files", {"cloud.las", "cloud.ply"}},
+                       {"options", dense.value("options", json::object())}};
     report["dsm"] = dense["dsm"];
     report["dsm"]["check_points"] = DsmAtCheckPoints(report, dsm);
     report["coverage"] = Coverage(ReadColmapText(o.workspace / "georeferenced"), dsm, g);

@@ -392,6 +392,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
                           {"per_image", m.value("images", json::array())}};
   }
   report["georeference_options"] = GeoreferenceFingerprint(o);
+  report["provenance"] = Provenance(o, ingest.record.options);
   const json ingest_doc = ToJson(ingest.record);
   report["camera_groups"] = ingest_doc.at("groups");
   report["ingest_warnings"] = ingest_doc.at("warnings");

@@ -22,6 +22,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "georef/gcp_file.h"
 #include "libphoto/adjust/georeferencing.h"
@@ -63,6 +64,11 @@ struct PipelineOptions {
   double dsm_resolution_m = 0.0;    // 0: twice the dense resolution
   double dsm_fill_m = 2.0;          // holes filled up to this distance
   bool cog = false;                 // Cloud-Optimised GeoTIFF
+
+  // Who asked: recorded in report.json "provenance" with the date and the
+  // effective options (set by the command-line tool; empty from a library caller).
+  std::string software_version;
+  std::vector<std::string> command_line;
 
   // One callback per stage name ("ingest", "features", ...); may be null.
   std::function<ProgressCallback(const std::string& stage)> progress;

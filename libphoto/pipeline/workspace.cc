@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/pipeline/workspace.h"
 
+#include <ctime>
+
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -154,6 +156,18 @@ nlohmann::json DenseFingerprint(const PipelineOptions& o) {
   return {{"dense_resolution_m", o.dense_resolution_m}, {"dense_image_scale", o.dense_image_scale},
           {"dense_min_views", o.dense_min_views},       {"dsm_resolution_m", o.dsm_resolution_m},
           {"dsm_fill_m", o.dsm_fill_m},                 {"cog", o.cog}};
+}
+
+nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options) {
+  char date[32] = "";
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  if (gmtime_r(&now, &utc)) std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return {{"software", o.software_version.empty() ? std::string("aerotri (library)") : o.software_version},
+          {"command_line", o.command_line},
+          {"date_utc", date},
+          {"options",
+           {{"ingest", ingest_options}, {"georeference", GeoreferenceFingerprint(o)}, {"threads", o.num_threads}}}};
 }
 
 std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now) {

@@ -35,6 +35,12 @@ std::string ContentHash(const std::filesystem::path& path);
 nlohmann::json IngestFingerprint(const PipelineOptions& o);
 nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o);
 nlohmann::json DenseFingerprint(const PipelineOptions& o);
+// report.json "provenance" of the adjustment: software version, command line
+// and UTC date of the process that ran the georeference stage, with the
+// options that produced it -- ingest's as recorded in ingest.json (it may
+// have run in another process), the georeference stage's own. The dense
+// stage's are in report.json dense.options (from dense.json).
+nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options);
 // "" when equal, else "key: recorded -> now; ..." (only differing keys).
 std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now);
 

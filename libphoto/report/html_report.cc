@@ -250,6 +250,17 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
        "svg.chart{width:100%;max-width:720px}svg.map{width:100%;max-width:600px}.warn{color:#a50}"
        "img.dsm{max-width:100%;border:1px solid #ccc}</style></head><body>";
   h << "<h1>aerotri survey report</h1>";
+  if (r.contains("provenance") && r["provenance"].is_object()) {
+    // Who made it, when, and how: the adjustment's process.
+    const json& p = r["provenance"];
+    std::string command;
+    for (const auto& arg : p.value("command_line", json::array())) {
+      if (arg.is_string()) command += (command.empty() ? "" : " ") + arg.get<std::string>();
+    }
+    h << "<p style='color:#555;font-size:12px'>" << Escape(Text(p, "software", "aerotri")) << "; adjusted "
+      << Escape(Text(p, "date_utc", "")) << (command.empty() ? "" : " by <code>" + Escape(command) + "</code>")
+      << "</p>";
+  }
   {
     // The status first: a failed survey must not look like any other.
     const std::string status = Text(r, "status", "unknown");

@@ -1,7 +1,7 @@
 # Runs one aerotri command and checks its exit code and output, so that CLI
 # behaviour is tested as data in ctest (see tests/CMakeLists.txt).
 #   -DEXE=path -DARGS=a|b|c -DCODE=n [-DSTDOUT=regex] [-DSTDOUT_NOT=regex] [-DSTDERR=regex]
-#   [-DSTDERR_EMPTY=1] [-DWORKDIR=dir]
+#   [-DSTDERR_EMPTY=1] [-DWORKDIR=dir] [-DFILE=path -DFILE_MATCHES=regex]
 string(REPLACE "|" ";" arg_list "${ARGS}")
 if(NOT WORKDIR)
   set(WORKDIR ".")
@@ -20,6 +20,12 @@ if(DEFINED STDOUT_NOT AND out MATCHES "${STDOUT_NOT}")
 endif()
 if(DEFINED STDERR AND NOT err MATCHES "${STDERR}")
   message(FATAL_ERROR "stderr does not match '${STDERR}':\n${err}")
+endif()
+if(DEFINED FILE)
+  file(READ ${FILE} content)
+  if(NOT content MATCHES "${FILE_MATCHES}")
+    message(FATAL_ERROR "${FILE} does not match '${FILE_MATCHES}':\n${content}")
+  endif()
 endif()
 if(STDERR_EMPTY AND NOT err STREQUAL "")
   message(FATAL_ERROR "stderr should be empty (--quiet):\n${err}")
