@@ -3,6 +3,7 @@
 // and altitude references, and focal length from EXIF.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include "camera_models/exif_intrinsics.h"
@@ -168,6 +169,20 @@ TEST(IngestStage, TypedRecordRoundTripsAndRefusesCorruptFiles) {
   bad = doc;
   bad["schema_version"] = 99;
   ExpectThrowWith<ParseError>([&] { IngestRecordFromJson(bad, "WS/ingest.json"); }, "schema_version 99");
+
+  // A GPS CSV: its names must be the photos' file names; one that matches
+  // nothing is a warning, a file that matches no photo an error.
+  std::ofstream(dir / "gps.csv") << "b.jpg,46.84,-91.99,200\nc.jpg,46.84,-91.99,201\n";
+  o.gps_csv = dir / "gps.csv";
+  const IngestRecord with_csv = IngestSurveyImages(o, nullptr);
+  ASSERT_TRUE(with_csv.images[1].gps.has_value());
+  EXPECT_NEAR(with_csv.images[1].gps->position.h_m, 200.0, 1e-9);
+  EXPECT_NE(std::find(with_csv.warnings.begin(), with_csv.warnings.end(),
+                      (dir / "gps.csv").string() + ": 1 of 2 names match no photo: 'c.jpg'"),
+            with_csv.warnings.end());
+  std::ofstream(dir / "gps.csv") << "IMG_1.JPG,46.84,-91.99,200\n";
+  ExpectThrowWith<InvalidArgument>([&] { IngestSurveyImages(o, nullptr); },
+                                   "gps.csv: none of its 1 names ('IMG_1.JPG') is a photo in");
 
   o.gps_sigma_v_m = 0.0;
   ExpectThrowWith<InvalidArgument>([&] { o.Check(); }, "--gps-sigma-v: expected a positive number");

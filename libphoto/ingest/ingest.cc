@@ -5,6 +5,7 @@
 #include <cmath>
 #include <iomanip>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "camera_models/exif_intrinsics.h"
@@ -67,8 +68,32 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
   }
   std::map<std::string, GpsFix> csv;
   if (!o.gps_csv.empty()) csv = ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
+  // CSV names are matched to file names exactly: one that matches nothing is
+  // said, and a file that matches no photo at all is an error, not ignored.
+  std::vector<std::string> unmatched;
+  {
+    std::set<std::string> names;
+    for (const fs::path& f : files) names.insert(f.filename().string());
+    for (const auto& [name, fix] : csv) {
+      if (!names.count(name)) unmatched.push_back(name);
+    }
+  }
+  const auto first_names = [](const std::vector<std::string>& v) {
+    std::string out;
+    for (size_t k = 0; k < v.size() && k < 5; ++k) out += (k ? ", " : "") + std::string("'") + v[k] + "'";
+    return out + (v.size() > 5 ? " (and " + std::to_string(v.size() - 5) + " more)" : "");
+  };
+  if (!csv.empty() && unmatched.size() == csv.size()) {
+    throw InvalidArgument(o.gps_csv.string() + ": none of its " + std::to_string(csv.size()) + " names (" +
+                          first_names(unmatched) + ") is a photo in " + o.images_dir.string() + " (" +
+                          "'" + files.front().filename().string() + "', ...); names must equal the file names");
+  }
 
   IngestRecord r;
+  if (!unmatched.empty()) {
+    r.warnings.push_back(o.gps_csv.string() + ": " + std::to_string(unmatched.size()) + " of " +
+                         std::to_string(csv.size()) + " names match no photo: " + first_names(unmatched));
+  }
   r.images_dir = fs::absolute(o.images_dir);
   r.working_max_dimension = o.max_dimension;
   std::map<std::string, int> group_of_key;
