@@ -7,6 +7,7 @@
 #include <map>
 #include <sstream>
 
+#include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
 
@@ -65,6 +66,7 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
     if (trimmed.empty() || trimmed[0] == '#') continue;
     if (file.crs.empty()) {
       file.crs = trimmed;
+      file.crs_line = number;
       if (SplitWhitespace(trimmed).size() >= 6 && ParseNumber(SplitWhitespace(trimmed)[0])) {
         throw ParseError(p, number, "expected a CRS on the first line (e.g. EPSG:32632), got "
                                     "a measurement line");
@@ -157,6 +159,14 @@ void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path) {
       }
     }
   });
+}
+
+void CheckGcpFileCrs(const GcpFile& file) {
+  try {
+    Crs::FromString(file.crs);
+  } catch (const CrsError& e) {
+    throw ParseError(file.path, file.crs_line, std::string("the CRS line is not a CRS PROJ knows: ") + e.what());
+  }
 }
 
 }  // namespace aerotri

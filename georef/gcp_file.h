@@ -50,11 +50,16 @@ struct GroundPoint {
 struct GcpFile {
   std::string path;
   std::string crs;  // the first line
+  int crs_line = 0;  // its line number (comments and blank lines may precede it)
   std::vector<GroundPoint> points;
 };
 
 GcpFile ReadGcpFile(const std::filesystem::path& path,
                     PixelOrigin origin = PixelOrigin::kCentre);
+
+// Checks that PROJ knows the file's CRS line (ReadGcpFile only tokenises, so
+// that parsing stays cheap); throws ParseError naming the file and the line.
+void CheckGcpFileCrs(const GcpFile& file);
 
 // Writes points back in the same format (OpenDroneMap's pixel convention,
 // PixelOrigin::kCentre), atomically.

@@ -131,6 +131,9 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   std::optional<GcpFile> control, checks;
   if (!args.gcp.empty()) control = ReadGcpFile(args.gcp, origin);
   if (!args.checkpoints.empty()) checks = ReadGcpFile(args.checkpoints, origin);
+  for (const auto* f : {&control, &checks}) {
+    if (*f) CheckGcpFileCrs(**f);  // before any adjustment, naming file and line
+  }
 
   GeoreferenceReport report = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
                                                     checks ? &*checks : nullptr, options);

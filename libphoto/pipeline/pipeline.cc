@@ -474,11 +474,7 @@ void ValidateInputs(const PipelineOptions& o) {
   for (const fs::path& path : {o.gcp, o.checkpoints}) {
     if (path.empty()) continue;
     const GcpFile file = ReadGcpFile(path, o.gcp_pixel_origin);
-    try {
-      Crs::FromString(file.crs);
-    } catch (const CrsError& e) {
-      throw ParseError(path.string(), 1, std::string("the CRS line is not a CRS PROJ knows: ") + e.what());
-    }
+    CheckGcpFileCrs(file);
     if (photos.empty()) continue;
     std::set<std::string> unknown;
     for (const GroundPoint& p : file.points) {
