@@ -208,10 +208,22 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
   RunPipeline(o);
   const auto before = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
   // Provenance: a library caller is named as such; the options are those that ran.
-  EXPECT_EQ(before["provenance"]["software"], "aerotri (library)");
-  EXPECT_EQ(before["provenance"]["options"]["georeference"], before["georeference_options"]);
-  EXPECT_EQ(before["provenance"]["options"]["ingest"]["gps_altitude"], "egm96");
-  EXPECT_EQ(before["dense"]["options"]["dsm_fill_m"], o.dsm_fill_m);
+  ASSERT_TRUE(before.contains("provenance") && before.contains("dense")) << before.dump(1);
+  EXPECT_EQ(before.at("provenance").value("software", ""), "aerotri (library)");
+  EXPECT_EQ(before.at("provenance").at("options").at("georeference"), before.at("georeference_options"));
+  EXPECT_EQ(before.at("provenance").at("options").at("ingest").value("gps_altitude", ""), "egm96");
+  EXPECT_EQ(before.at("dense").value("options", nlohmann::json::object()).value("dsm_fill_m", -1.0), o.dsm_fill_m);
+  // A product damaged since it was written (here cloud.las, truncated) is
+  // rebuilt on resume, never read, and the report is redone after it.
+  {
+    const auto las = o.workspace / "cloud.las";
+    const auto bytes = std::filesystem::file_size(las);
+    std::filesystem::resize_file(las, bytes / 2);
+    EXPECT_TRUE(RunDenseStage(o));
+    EXPECT_EQ(std::filesystem::file_size(las), bytes);
+    EXPECT_TRUE(RunReportStage(o));
+    EXPECT_FALSE(RunDenseStage(o));  // intact now: resumed, not redone
+  }
   // aerotri dem: another resolution from cloud.las.
   o.dsm_resolution_m = 0.5;
   RebuildDsm(o, o.workspace / "dsm_0.5m.tif");

@@ -179,16 +179,32 @@ bool RunDenseStage(const PipelineOptions& o) {
   const fs::path las = o.workspace / "cloud.las", ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
   bool rerun = o.force;
   if (fs::exists(las) && fs::exists(ply) && fs::exists(dsm) && !o.force) {
-    const std::string changed = FingerprintChanges(
-        fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense").value("options", json())
-                                               : json(),
-        DenseFingerprint(o));
-    if (changed.empty()) {
+    const json recorded =
+        fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense") : json::object();
+    const std::string changed = FingerprintChanges(recorded.value("options", json()), DenseFingerprint(o));
+    // A product whose size is not the one recorded when it was written has
+    // been damaged since (truncated copy, disk error): rebuild, never read it.
+    std::string damaged;
+    const json file_bytes = recorded.value("file_bytes", json::object());  // items() needs it alive
+    for (const auto& [name, bytes] : file_bytes.items()) {
+      std::error_code ec;
+      const auto size = fs::file_size(o.workspace / name, ec);
+      if (ec || !bytes.is_number() || size != bytes.get<std::uintmax_t>()) {
+        damaged += (damaged.empty() ? "" : ", ") + (o.workspace / name).string() + " (" +
+                   (ec ? std::string("unreadable") : std::to_string(size)) + " bytes, " + bytes.dump() + " written)";
+      }
+    }
+    if (!damaged.empty()) {
+      Log(o, "warning: dense: damaged since it was written: " + damaged + "; rebuilding the dense products");
+      rerun = true;
+    } else if (changed.empty()) {
       Log(o, "dense: done already (" + las.string() + ")");
       return false;
     }
-    Log(o, "dense: options changed (" + changed + "): rerunning");
-    rerun = true;
+    if (!rerun) {
+      Log(o, "dense: options changed (" + changed + "): rerunning");
+      rerun = true;
+    }
   }
   const auto start = Clock::now();
   if (rerun) fs::remove_all(o.workspace / "depth");
@@ -249,8 +265,12 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"min_views", d.min_views},
                       {"tiles", summary.tiles},
                       {"dsm", dsm_info},
-                      {"options", DenseFingerprint(o)}};
+                      {"options", DenseFingerprint(o)},
+                      {"file_bytes",
+                       {{"cloud.las", fs::file_size(las)}, {"cloud.ply", fs::file_size(ply)},
+                        {"dsm.tif", fs::file_size(dsm)}}}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
+  fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
   Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud.resolution_m) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
              std::to_string(dsm_info["height"].get<int>()));
