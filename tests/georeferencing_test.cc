@@ -300,5 +300,133 @@ TEST(Georeferencing, Sigma0IsOneWhenTheSigmasMatchTheNoise) {
               r.bundle.redundancy, p.bundle.sigma0);
 }
 
+
+// Sigmas that match the injected noise: 0.3 px on every image measurement,
+// 1 cm survey noise, the GPS's own 2 / 4 m; least squares without a loss.
+GeoreferenceOptions MatchingSigmas() {
+  GeoreferenceOptions o = Options();
+  o.bundle.loss = LossType::kNone;
+  o.bundle.outlier_threshold_px = 0.0;
+  o.bundle.observation_sigma_px = 0.3;
+  return o;
+}
+
+// Check points' errors against their posterior sigmas, over seeds: with
+// sigmas that describe the noise, (adjusted − surveyed) / sqrt(σ² + σ_survey²)
+// is standard normal on every axis. Independent check points carry the
+// cameras' covariance; inside the bundle they are free points.
+TEST(Georeferencing, CheckPointErrorsMatchTheirPosteriorSigmas) {
+  for (const bool in_bundle : {false, true}) {
+    double sum = 0.0;
+    int n = 0;
+    for (std::uint32_t seed = 40; seed < 46; ++seed) {
+      const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(seed), {});
+      GeoreferenceOptions options = MatchingSigmas();
+      options.bundle.check_points_in_bundle = in_bundle;
+      SparseModel model = ArbitraryFrame(scene.tie_model, seed);
+      const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, options);
+      SCOPED_TRACE(r.bundle.BriefReport());
+      ASSERT_TRUE(r.bundle.precision.computed) << r.bundle.precision.note;
+      EXPECT_EQ(r.check_points_in_bundle, in_bundle);
+      EXPECT_GT(r.bundle.sigma0, 0.9);
+      EXPECT_LT(r.bundle.sigma0, 1.1);
+      for (const GroundPointResult& p : r.check) {
+        ASSERT_TRUE(p.solved && p.has_precision) << p.name;
+        for (int a = 0; a < 3; ++a) {
+          const double z = p.d_m[a] / std::hypot(p.sigma_m[a], 0.01);
+          sum += z * z;
+          ++n;
+        }
+      }
+      // Cameras: centimetre-level centres, hundredths of a degree.
+      for (const CameraResult& c : r.cameras) {
+        ASSERT_TRUE(c.has_precision) << c.name;
+        EXPECT_GT(c.sigma_position_m.minCoeff(), 1e-3);
+        EXPECT_LT(c.sigma_position_m.maxCoeff(), 0.2);
+        EXPECT_GT(c.sigma_opk_deg.minCoeff(), 1e-4);
+        EXPECT_LT(c.sigma_opk_deg.maxCoeff(), 0.2);
+      }
+    }
+    const double rms = std::sqrt(sum / n);
+    std::printf("check points %s: RMS of error / posterior sigma %.3f over %d axes\n",
+                in_bundle ? "in the bundle" : "independent", rms, n);
+    EXPECT_GT(rms, 0.8);
+    EXPECT_LT(rms, 1.25);
+  }
+}
+
+// Camera centres against the truth over seeds, through the same statistic:
+// the posterior sigmas of the exterior orientation are honest too.
+TEST(Georeferencing, CameraCentreErrorsMatchTheirPosteriorSigmas) {
+  double sum = 0.0;
+  int n = 0;
+  for (std::uint32_t seed = 50; seed < 53; ++seed) {
+    const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(seed), {});
+    SparseModel model = ArbitraryFrame(scene.tie_model, seed);
+    const GeoreferenceReport r =
+        GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, MatchingSigmas());
+    ASSERT_TRUE(r.bundle.precision.computed) << r.bundle.precision.note;
+    const LocalFrame truth_frame(SyntheticGeorefOptions{}.origin);
+    const LocalFrame frame(r.enu_origin);
+    const Crs crs = Crs::FromString(r.crs);
+    for (size_t i = 0; i < model.images.size(); ++i) {
+      const CameraResult* c = nullptr;
+      for (const CameraResult& x : r.cameras) {
+        if (x.name == model.images[i].name) c = &x;
+      }
+      ASSERT_TRUE(c && c->has_precision);
+      const Eigen::Vector3d truth =
+          crs.FromGeodetic(truth_frame.GeodeticFromEnu(scene.survey.truth.images[i].pose.centre_in_world));
+      for (int a = 0; a < 3; ++a) {
+        const double z = (c->position_crs[a] - truth[a]) / c->sigma_position_m[a];
+        sum += z * z;
+        ++n;
+      }
+    }
+  }
+  const double rms = std::sqrt(sum / n);
+  std::printf("camera centres: RMS of error / posterior sigma %.3f over %d axes\n", rms, n);
+  // Centres of one block are correlated (a datum error moves them all), so
+  // the band is wider than for independent samples.
+  EXPECT_GT(rms, 0.6);
+  EXPECT_LT(rms, 1.6);
+}
+
+// Baarda's w-test: a 5 px blunder on one control mark is named by point and
+// image; without it, nothing is flagged.
+TEST(Georeferencing, WTestNamesABlunderedMark) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(61), {});
+  GeoreferenceOptions options = MatchingSigmas();
+  options.bundle = SurveyBundleOptions();  // the product's loss and rejection
+  options.bundle.observation_sigma_px = 0.3;
+  auto has = [](const GeoreferenceReport& r, const std::string& code) {
+    for (const Finding& f : r.findings) {
+      if (f.code == code) return &f;
+    }
+    return static_cast<const Finding*>(nullptr);
+  };
+  {
+    SparseModel model = ArbitraryFrame(scene.tie_model, 61);
+    const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, options);
+    ASSERT_TRUE(r.bundle.precision.computed) << r.bundle.precision.note;
+    EXPECT_EQ(has(r, "MARK_BLUNDER"), nullptr);
+    EXPECT_GT(r.marks.size(), 20u);
+    double max_w = 0.0;
+    for (const MarkResult& m : r.marks) max_w = std::max(max_w, m.w.cwiseAbs().maxCoeff());
+    EXPECT_LT(max_w, r.w_critical);
+  }
+  GcpFile control = scene.control;
+  GroundPoint& point = control.points.at(3);
+  ASSERT_GE(point.measurements.size(), 3u);
+  GcpMeasurement& mark = point.measurements.at(1);
+  mark.xy_px += Eigen::Vector2d(3.0, -4.0);  // 5 px
+  SparseModel model = ArbitraryFrame(scene.tie_model, 61);
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &control, &scene.checks, options);
+  const Finding* f = has(r, "MARK_BLUNDER");
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(f->items, (std::vector<std::string>{point.name, mark.image})) << f->message;
+  EXPECT_EQ(SurveyStatus(r.findings), "warnings");
+}
+
 }  // namespace
 }  // namespace aerotri

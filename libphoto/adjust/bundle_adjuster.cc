@@ -9,13 +9,16 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <thread>
 
+#include "libphoto/adjust/bundle_precision.h"
 #include "libphoto/adjust/position_prior_cost.h"
 #include "libphoto/adjust/reprojection_cost.h"
 #include "libphoto/base/error.h"
+#include "libphoto/geometry/triangulation.h"
 
 namespace aerotri {
 namespace {
@@ -137,6 +140,7 @@ struct RoundResult {
   double setup_s = 0.0;
   std::vector<IntrinsicsPrecision> precision;
   std::string covariance_note;
+  BundlePrecision posterior;  // a priori (unit weight) until AdjustBundle scales it
 };
 
 // The a-priori covariance of every refined intrinsics block and its
@@ -281,8 +285,168 @@ void RestoreDatum(const Datum& datum, bool restore_rotation, bool restore_scale,
 
 // gps_offset: the shared GPS offset block (BundleOptions::estimate_gps_offset),
 // in and out.
+// The posterior precision of a solved problem (BundleOptions::
+// compute_precision): the reduced camera system of bundle_precision.h over
+// the problem's varying blocks, plus the independent check points,
+// triangulated here with the cameras held, whose rows are added to the
+// problem for their Jacobian only. A priori (unit weight); AdjustBundle
+// scales it by σ0².
+BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, const std::vector<char>& image_used,
+                                   const std::vector<char>& point_used,
+                                   std::vector<std::array<double, 4>>& rotations,
+                                   const std::vector<std::pair<ceres::ResidualBlockId, int>>& mark_blocks,
+                                   const std::function<ceres::LossFunction*(double)>& loss_for, double mark_sigma,
+                                   const BundleOptions& options, double* gps_offset) {
+  const auto start = Clock::now();
+  BundlePrecision out;
+  internal::PrecisionProblem pp;
+  pp.problem = problem;
+  pp.num_threads = options.num_threads > 0 ? options.num_threads
+                                           : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  problem->GetResidualBlocks(&pp.adjusted);
+  auto varying = [&](double* block) {
+    return problem->HasParameterBlock(block) && !problem->IsParameterBlockConstant(block);
+  };
+  std::vector<int> point_slot(model->points.size(), -1);
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    double* position = model->points[p].position.data();
+    if (!point_used[p] || !varying(position)) continue;
+    point_slot[p] = static_cast<int>(pp.points.size());
+    pp.points.push_back(position);
+  }
+  auto add_reduced = [&](double* block) {
+    if (!varying(block)) return -1;
+    pp.reduced.push_back(block);
+    return static_cast<int>(pp.reduced.size()) - 1;
+  };
+  const size_t num_images = model->images.size();
+  std::vector<int> rotation_slot(num_images, -1), centre_slot(num_images, -1);
+  for (size_t i = 0; i < num_images; ++i) {
+    if (!image_used[i]) continue;
+    rotation_slot[i] = add_reduced(rotations[i].data());
+    centre_slot[i] = add_reduced(model->images[i].pose.centre_in_world.data());
+  }
+  for (Camera& camera : model->cameras) add_reduced(camera.params.data());
+  const int offset_slot = add_reduced(gps_offset);
+
+  std::vector<int> mark_observation;
+  std::vector<double> mark_sigma_of;
+  for (const auto& [id, k] : mark_blocks) {
+    const Observation& obs = model->observations[k];
+    if (point_slot[obs.point] < 0) continue;
+    internal::PrecisionProblem::Rows rows;
+    rows.ids = {id};
+    rows.point = point_slot[obs.point];
+    pp.marks.push_back(rows);
+    mark_observation.push_back(k);
+    mark_sigma_of.push_back(obs.sigma_px > 0.0 ? obs.sigma_px : mark_sigma);
+  }
+
+  // Independent check points: triangulated from the adjusted cameras.
+  std::vector<int> check_points;
+  if (!options.check_points_in_bundle) {
+    std::vector<std::vector<int>> obs_of_point(model->points.size());
+    for (size_t k = 0; k < model->observations.size(); ++k) {
+      const Observation& obs = model->observations[k];
+      if (model->points[obs.point].role == PointRole::kCheck && image_used[obs.image]) {
+        obs_of_point[obs.point].push_back(static_cast<int>(k));
+      }
+    }
+    for (size_t p = 0; p < model->points.size(); ++p) {
+      if (obs_of_point[p].size() < 2) continue;
+      std::vector<View> views;
+      for (int k : obs_of_point[p]) {
+        const Observation& obs = model->observations[k];
+        const Image& image = model->images[obs.image];
+        views.push_back({&model->cameras[image.camera], image.pose, obs.xy});
+      }
+      const auto t = TriangulatePoint(views);
+      if (!t) continue;
+      Point& point = model->points[p];
+      point.position = t->position;
+      internal::PrecisionProblem::Rows rows;
+      rows.position = point.position.data();
+      for (int k : obs_of_point[p]) {
+        const Observation& obs = model->observations[k];
+        Image& image = model->images[obs.image];
+        Camera& camera = model->cameras[image.camera];
+        const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px : mark_sigma;
+        ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
+          return new ReprojectionCost<decltype(m)>(obs.xy, sigma);
+        });
+        rows.ids.push_back(problem->AddResidualBlock(cost, loss_for(sigma), rotations[obs.image].data(),
+                                                     image.pose.centre_in_world.data(), rows.position,
+                                                     camera.params.data()));
+      }
+      pp.checks.push_back(rows);
+      check_points.push_back(static_cast<int>(p));
+    }
+  }
+
+  const internal::PrecisionSolution solution = internal::SolvePrecision(pp);
+  if (!solution.ok) {
+    out.note = "not computed: " + solution.note;
+    return out;
+  }
+  auto block = [&](int slot) -> Eigen::Matrix3d {
+    const int o = solution.reduced_offset[slot];
+    return solution.reduced_cov.block<3, 3>(o, o);
+  };
+  const ceres::QuaternionManifold manifold;
+  for (size_t i = 0; i < num_images; ++i) {
+    if (!image_used[i]) continue;
+    ImagePrecision ip;
+    ip.image = static_cast<int>(i);
+    if (centre_slot[i] >= 0) ip.centre_cov = block(centre_slot[i]);
+    if (rotation_slot[i] >= 0) {
+      // θ of Exp(θ) R against Ceres' tangent δ: numerically, whatever the
+      // manifold's convention.
+      const double* q = rotations[i].data();
+      const Eigen::Quaterniond q0(q[0], q[1], q[2], q[3]);
+      Eigen::Matrix3d d_theta;
+      const double eps = 1e-6;
+      for (int k = 0; k < 3; ++k) {
+        double delta[3] = {0, 0, 0}, plus[4], minus[4];
+        delta[k] = eps;
+        manifold.Plus(q, delta, plus);
+        delta[k] = -eps;
+        manifold.Plus(q, delta, minus);
+        const Eigen::AngleAxisd a(Eigen::Quaterniond(plus[0], plus[1], plus[2], plus[3]) * q0.conjugate());
+        const Eigen::AngleAxisd b(Eigen::Quaterniond(minus[0], minus[1], minus[2], minus[3]) * q0.conjugate());
+        d_theta.col(k) = (a.angle() * a.axis() - b.angle() * b.axis()) / (2.0 * eps);
+      }
+      ip.rotation_cov = d_theta * block(rotation_slot[i]) * d_theta.transpose();
+    }
+    out.images.push_back(ip);
+  }
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    if (point_slot[p] >= 0) out.points.push_back({static_cast<int>(p), solution.point_cov[point_slot[p]]});
+  }
+  for (size_t k = 0; k < check_points.size(); ++k) out.points.push_back({check_points[k], solution.check_cov[k]});
+  if (offset_slot >= 0) {
+    out.has_gps_offset = true;
+    out.gps_offset_cov = block(offset_slot);
+  }
+  for (size_t m = 0; m < solution.marks.size(); ++m) {
+    const internal::MarkCofactor& c = solution.marks[m];
+    MarkTest t;
+    t.observation = mark_observation[m];
+    t.point = model->observations[t.observation].point;
+    t.image = model->observations[t.observation].image;
+    t.residual_px = c.residual * mark_sigma_of[m];
+    t.redundancy = c.qvv;
+    for (int a = 0; a < 2; ++a) t.w[a] = c.qvv[a] > 1e-6 ? c.residual[a] / std::sqrt(c.qvv[a]) : 0.0;
+    out.marks.push_back(t);
+  }
+  out.computed = true;
+  out.time_s = SecondsSince(start);
+  return out;
+}
+
+// precision_pass: no solve; the problem at the current values gives
+// RoundResult::posterior (BundleOptions::compute_precision).
 RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
-                      double* gps_offset) {
+                      double* gps_offset, bool precision_pass = false) {
   const auto setup_start = Clock::now();
   RoundResult result;
   const auto per_point = model->ObservationsPerPoint();
@@ -290,7 +454,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
 
   auto use_point = [&](int index) {
     const Point& point = model->points[index];
-    if (point.role == PointRole::kCheck) return false;
+    if (point.role == PointRole::kCheck) return options.check_points_in_bundle && per_point[index] >= 2;
     const bool anchored =
         point.role == PointRole::kControl && point.prior && options.use_gcp_priors;
     return per_point[index] >= 2 || (anchored && per_point[index] >= 1);
@@ -376,9 +540,14 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   // Blocks are distinct buffers by construction and the model was validated.
   problem_options.disable_all_safety_checks = true;
   ceres::Problem problem(problem_options);
-  std::unique_ptr<ceres::LossFunction> loss = MakeLoss(options, options.observation_sigma_px);
   const double mark_sigma = options.mark_sigma_px > 0.0 ? options.mark_sigma_px : options.observation_sigma_px;
-  std::unique_ptr<ceres::LossFunction> mark_loss = MakeLoss(options, mark_sigma);
+  // One loss per image sigma (its scale is in pixels, the residual in sigmas).
+  std::map<double, std::unique_ptr<ceres::LossFunction>> losses;
+  auto loss_for = [&](double sigma) {
+    auto it = losses.find(sigma);
+    if (it == losses.end()) it = losses.emplace(sigma, MakeLoss(options, sigma)).first;
+    return it->second.get();
+  };
   ceres::QuaternionManifold quaternion_manifold;
   std::vector<std::unique_ptr<ceres::Manifold>> owned_manifolds;
 
@@ -422,16 +591,20 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
-  for (const Observation& obs : model->observations) {
+  // Target marks' residual blocks, with their observation index.
+  std::vector<std::pair<ceres::ResidualBlockId, int>> mark_blocks;
+  for (size_t k = 0; k < model->observations.size(); ++k) {
+    const Observation& obs = model->observations[k];
     Image& image = model->images[obs.image];
     if (!image_used[obs.image] || !point_used[obs.point]) continue;
     Camera& camera = model->cameras[image.camera];
     double* point = model->points[obs.point].position.data();
     const bool is_merged = !merged[obs.image].empty();
-    // Target marks (control points) have their own image sigma.
+    // Target marks (control and check points) have their own image sigma,
+    // and any measurement may state its own.
     const bool is_mark = model->points[obs.point].role != PointRole::kTie;
-    const double sigma = is_mark ? mark_sigma : options.observation_sigma_px;
-    ceres::LossFunction* obs_loss = is_mark ? mark_loss.get() : loss.get();
+    const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px : is_mark ? mark_sigma : options.observation_sigma_px;
+    ceres::LossFunction* obs_loss = loss_for(sigma);
     ceres::CostFunction* cost =
         VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
           using Model = decltype(m);
@@ -440,12 +613,14 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
           }
           return new ReprojectionCost<Model>(obs.xy, sigma);
         });
+    ceres::ResidualBlockId id;
     if (is_merged) {
-      problem.AddResidualBlock(cost, obs_loss, merged[obs.image].data(), point);
+      id = problem.AddResidualBlock(cost, obs_loss, merged[obs.image].data(), point);
     } else {
-      problem.AddResidualBlock(cost, obs_loss, rotations[obs.image].data(),
-                               image.pose.centre_in_world.data(), point, camera.params.data());
+      id = problem.AddResidualBlock(cost, obs_loss, rotations[obs.image].data(),
+                                    image.pose.centre_in_world.data(), point, camera.params.data());
     }
+    if (is_mark) mark_blocks.emplace_back(id, static_cast<int>(k));
   }
 
   // GPS priors, through the shared offset block when it is estimated. Without
@@ -626,7 +801,18 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   }
   result.setup_s = SecondsSince(setup_start);
 
-  if (problem.NumResidualBlocks() > 0) {
+  if (precision_pass) {
+    const bool any_merged = std::any_of(merged.begin(), merged.end(), [](const auto& m) { return !m.empty(); });
+    if (any_merged) {
+      result.posterior.note = "not computed: images with a camera group of their own";
+    } else if (!datum_from_priors && prior_positions.empty()) {
+      result.posterior.note = "not computed: no priors hold the datum (a fixed image and baseline do; the "
+                              "precision would be relative to them)";
+    } else {
+      result.posterior = PosteriorPrecision(&problem, model, image_used, point_used, rotations, mark_blocks,
+                                            loss_for, mark_sigma, options, gps_offset);
+    }
+  } else if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
     if (options.compute_intrinsics_covariance) {
       const bool any_merged = std::any_of(merged.begin(), merged.end(), [](const auto& m) { return !m.empty(); });
@@ -877,8 +1063,10 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     int removed = 0;
     for (size_t i = 0; i < errors.size(); ++i) {
       const Observation& obs = model->observations[i];
+      // Tie points only: a target mark is never dropped silently (the
+      // w-test of the precision pass names a bad one).
       const bool adjusted = model->images[obs.image].registered &&
-                            model->points[obs.point].role != PointRole::kCheck;
+                            model->points[obs.point].role == PointRole::kTie;
       if (adjusted && !(errors[i] <= options.outlier_threshold_px)) {
         ++removed;
       } else {
@@ -889,6 +1077,22 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     model->observations.swap(kept);
     summary.outliers_removed += removed;
     summary.outlier_rounds = round + 1;
+  }
+
+  if (options.compute_precision) {
+    RoundResult pass = SolveOnce(model, options, summary.outlier_rounds + 1, gps_offset.data(),
+                                 /*precision_pass=*/true);
+    summary.precision = std::move(pass.posterior);
+    BundlePrecision& p = summary.precision;
+    if (p.computed) {
+      p.variance_factor = summary.sigma0 > 0.0 ? summary.sigma0 * summary.sigma0 : 1.0;
+      for (ImagePrecision& ip : p.images) {
+        ip.centre_cov *= p.variance_factor;
+        ip.rotation_cov *= p.variance_factor;
+      }
+      for (PointPrecision& pt : p.points) pt.cov *= p.variance_factor;
+      p.gps_offset_cov *= p.variance_factor;
+    }
   }
 
   // Diagnostics.
@@ -919,6 +1123,20 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   }
   summary.total_time_s = SecondsSince(start);
   return summary;
+}
+
+const PointPrecision* BundlePrecision::ForPoint(int point) const {
+  for (const PointPrecision& p : points) {
+    if (p.point == point) return &p;
+  }
+  return nullptr;
+}
+
+const ImagePrecision* BundlePrecision::ForImage(int image) const {
+  for (const ImagePrecision& p : images) {
+    if (p.image == image) return &p;
+  }
+  return nullptr;
 }
 
 std::string BundleSummary::BriefReport() const {

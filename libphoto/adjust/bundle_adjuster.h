@@ -102,9 +102,10 @@ struct BundleOptions {
   double parameter_tolerance = 1e-8;
   double max_time_s = 0.0;  // 0: no limit
 
-  // After convergence, observations whose reprojection error exceeds this
-  // (px) are rejected and the problem is solved again, up to
-  // max_outlier_rounds times. 0 disables rejection.
+  // After convergence, tie-point observations whose reprojection error
+  // exceeds this (px) are rejected and the problem is solved again, up to
+  // max_outlier_rounds times. 0 disables rejection. Target marks are kept:
+  // the w-test (compute_precision) judges them.
   double outlier_threshold_px = 0.0;
   int max_outlier_rounds = 2;
 
@@ -120,6 +121,18 @@ struct BundleOptions {
   // max_covariance_residuals residuals, where the QR would cost minutes.
   bool compute_intrinsics_covariance = false;
   int max_covariance_residuals = 3000000;
+
+  // After the last solve, the posterior precision of the adjustment
+  // (BundleSummary::precision): covariances of every camera centre and
+  // rotation, every adjusted point, the GPS offset and the check points, and
+  // Baarda's w-test of every target mark, from the reduced camera system
+  // (bundle_precision.h). Skipped (with the reason) for images with a camera
+  // group of their own (BAL) or a datum held by a fixed image.
+  bool compute_precision = false;
+  // Check points as free points inside the bundle (their marks tie the
+  // block; no prior) instead of independent points triangulated afterwards
+  // with the cameras held.
+  bool check_points_in_bundle = false;
 
   std::function<void(const IterationReport&)> iteration_callback;
   // Keep Ceres' FullReport() of every solve in BundleSummary::solver_report.
@@ -147,6 +160,49 @@ struct IntrinsicsPrecision {
   // median and largest |ρ(f, Z_i)| (0 when f is not refined).
   double focal_height_correlation_median = 0.0;
   double focal_height_correlation_max = 0.0;
+};
+
+// Posterior (a-posteriori) covariances, scaled by the variance factor σ0²
+// of the adjustment; frames as in the model (the adjustment frame, metres).
+struct ImagePrecision {
+  int image = -1;                                     // index in SparseModel::images
+  Eigen::Matrix3d centre_cov = Eigen::Matrix3d::Zero();  // m²; zero when held
+  // Of the small rotation θ (radians, camera frame) in
+  // cam_from_world' = Exp(θ) · cam_from_world; zero when held.
+  Eigen::Matrix3d rotation_cov = Eigen::Matrix3d::Zero();
+};
+
+struct PointPrecision {
+  int point = -1;                               // index in SparseModel::points
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  // m²
+};
+
+// Baarda's data snooping on one target-mark observation: residual v
+// (adjusted − observed, px), its redundancy number r = q_vv / q_ll and the
+// normalised residual w = v / (σ √r) per image axis, σ the a-priori image
+// sigma of the mark (σ0 a priori = 1).
+struct MarkTest {
+  int observation = -1;  // index in SparseModel::observations
+  int point = -1;
+  int image = -1;
+  Eigen::Vector2d residual_px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d redundancy = Eigen::Vector2d::Zero();
+  Eigen::Vector2d w = Eigen::Vector2d::Zero();
+  double MaxAbsW() const { return w.cwiseAbs().maxCoeff(); }
+};
+
+struct BundlePrecision {
+  bool computed = false;
+  std::string note;              // why not, when !computed
+  double variance_factor = 1.0;  // σ0², applied to every covariance
+  std::vector<ImagePrecision> images;  // adjusted images
+  std::vector<PointPrecision> points;  // adjusted points and check points
+  bool has_gps_offset = false;
+  Eigen::Matrix3d gps_offset_cov = Eigen::Matrix3d::Zero();
+  std::vector<MarkTest> marks;  // control marks, and check marks inside the bundle
+  double time_s = 0.0;
+  const PointPrecision* ForPoint(int point) const;
+  const ImagePrecision* ForImage(int image) const;
 };
 
 struct BundleSummary {
@@ -193,6 +249,8 @@ struct BundleSummary {
 
   std::vector<IntrinsicsPrecision> intrinsics_precision;
   std::string covariance_note;  // why intrinsics_precision is empty, when asked for
+
+  BundlePrecision precision;  // when BundleOptions::compute_precision
 
   std::vector<WeakImage> weak_images;
   int weak_points_small_angle = 0;

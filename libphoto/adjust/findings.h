@@ -22,6 +22,8 @@
 //                              error    when more than half of them are
 //   PRIORS_INCONSISTENT        warning  priors left out of the initial fit
 //   DOME                       warning  vertical residuals domed across the block
+//   MARK_BLUNDER               warning  Baarda's w-test rejects a target mark (point, image)
+//   PRECISION_NOT_COMPUTED     warning  posterior sigmas and the w-test are missing (why)
 //   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model
 //   NOTHING_REGISTERED         error    fewer than two photos in the model: no survey

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <unordered_map>
 
+#include <Eigen/SVD>
+
 #include "libphoto/base/error.h"
 #include "libphoto/geometry/triangulation.h"
 
@@ -44,6 +46,42 @@ std::string FormatMetres(double m) {
   std::snprintf(text, sizeof text, "%.3f m", m);
   return text;
 }
+
+// d(output CRS)/d(ENU) at an adjustment-frame position, by central
+// differences over ±1 m; the identity for a geographic CRS, whose figures
+// stay in local ENU metres.
+Eigen::Matrix3d CrsFromEnuJacobian(const LocalFrame& frame, const Crs& crs, const Eigen::Vector3d& enu) {
+  if (crs.IsGeographic()) return Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d j;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d e = Eigen::Vector3d::Unit(k);
+    j.col(k) = 0.5 * (crs.FromGeodetic(frame.GeodeticFromEnu(enu + e)) -
+                      crs.FromGeodetic(frame.GeodeticFromEnu(enu - e)));
+  }
+  return j;
+}
+
+// The rotation part of a conformal Jacobian (polar decomposition).
+Eigen::Matrix3d RotationOf(const Eigen::Matrix3d& j) {
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(j, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d r = svd.matrixU() * svd.matrixV().transpose();
+  if (r.determinant() < 0) r = -r;
+  return r;
+}
+
+// ω, φ, κ (radians) of R = Rx(ω) Ry(φ) Rz(κ).
+Eigen::Vector3d OmegaPhiKappa(const Eigen::Matrix3d& r) {
+  return {std::atan2(-r(1, 2), r(2, 2)), std::asin(std::clamp(r(0, 2), -1.0, 1.0)), std::atan2(-r(0, 1), r(0, 0))};
+}
+
+// Grid-from-photo rotation of a pose: photo axes are OpenCV's camera axes
+// with y and z turned (x right, y up, z out of the lens).
+Eigen::Matrix3d GridFromPhoto(const Eigen::Matrix3d& grid_from_enu, const Eigen::Quaterniond& cam_from_world) {
+  return grid_from_enu * cam_from_world.conjugate().toRotationMatrix() * Eigen::Vector3d(1, -1, -1).asDiagonal();
+}
+
+// Angles wrapped into (-pi, pi] around a reference (for differences).
+double WrapAngle(double a) { return std::remainder(a, 2.0 * M_PI); }
 
 void ApplySimilarity(const Similarity& s, SparseModel* model) {
   for (Image& image : model->images) {
@@ -493,10 +531,16 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   report.helmert_inliers = fit->num_inliers;
   report.helmert_rms_m = fit->rms_m;
   ApplySimilarity(fit->transform, model);
+  report.check_points_in_bundle = options.bundle.check_points_in_bundle;
   for (const SurveyedPoint& s : surveyed) {
     Point& point = model->points[s.point_index];
     if (s.role == PointRole::kControl && !triangulated[s.point_index]) {
       point.position = point.prior->position;  // seen once: start at its survey
+    }
+    if (s.role == PointRole::kCheck && report.check_points_in_bundle) {
+      // A free point of the bundle: starts where the similarity puts its rays.
+      const auto t = TriangulatePoint(ViewsOf(*model, s.point_index));
+      point.position = t ? t->position : point.prior->position;
     }
   }
 
@@ -610,6 +654,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   // 4. Bundle adjustment with priors.
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
   bundle.compute_intrinsics_covariance = true;
+  bundle.compute_precision = true;
   const SparseModel before_final = *model;
   report.bundle = AdjustBundle(model, bundle);
   report.refined = report.bundle.refined_intrinsics;
@@ -675,10 +720,17 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   std::vector<Eigen::Vector3d> control_d, check_d;
   for (const SurveyedPoint& s : surveyed) {
     Point& point = model->points[s.point_index];
-    const GroundPointResult r =
+    GroundPointResult r =
         EvaluateGroundPoint(s.source->name, s.role, ViewsOf(*model, s.point_index), s.geodetic, frame,
-                            *out_crs, /*triangulate=*/s.role == PointRole::kCheck, &point.position);
+                            *out_crs, /*triangulate=*/s.role == PointRole::kCheck && !report.check_points_in_bundle,
+                            &point.position);
     if (r.solved) (s.role == PointRole::kControl ? control_d : check_d).push_back(r.d_m);
+    const PointPrecision* precision = report.bundle.precision.ForPoint(s.point_index);
+    if (r.solved && precision) {
+      const Eigen::Matrix3d j = CrsFromEnuJacobian(frame, *out_crs, point.position);
+      r.has_precision = true;
+      r.sigma_m = (j * precision->cov * j.transpose()).diagonal().cwiseMax(0.0).cwiseSqrt();
+    }
     (s.role == PointRole::kControl ? report.control : report.check).push_back(r);
   }
   report.control_stats = AccuracyStats::FromResiduals(control_d);
@@ -725,10 +777,37 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     report.dome = FitDome(xy, dz, centre, radius, source);
   }
 
-  for (const Image& image : model->images) {
+  const BundlePrecision& precision = report.bundle.precision;
+  report.precision_note = precision.computed ? "" : precision.note;
+  for (size_t index = 0; index < model->images.size(); ++index) {
+    const Image& image = model->images[index];
     if (!image.registered) continue;
     CameraResult c;
     c.name = image.name;
+    {
+      const Eigen::Vector3d& centre = image.pose.centre_in_world;
+      c.position_crs = out_crs->FromGeodetic(frame.GeodeticFromEnu(centre));
+      const Eigen::Matrix3d j = CrsFromEnuJacobian(frame, *out_crs, centre);
+      const Eigen::Matrix3d grid = RotationOf(j);
+      const Eigen::Vector3d opk = OmegaPhiKappa(GridFromPhoto(grid, image.pose.cam_from_world));
+      c.opk_deg = opk * 180.0 / M_PI;
+      if (const ImagePrecision* ip = precision.ForImage(static_cast<int>(index))) {
+        c.has_precision = true;
+        c.sigma_position_m = (j * ip->centre_cov * j.transpose()).diagonal().cwiseMax(0.0).cwiseSqrt();
+        // d(ω, φ, κ)/dθ of Exp(θ) R_cw, by central differences.
+        Eigen::Matrix3d d;
+        const double eps = 1e-6;
+        for (int k = 0; k < 3; ++k) {
+          const Eigen::Quaterniond turn(Eigen::AngleAxisd(eps, Eigen::Vector3d::Unit(k)));
+          const Eigen::Vector3d plus = OmegaPhiKappa(GridFromPhoto(grid, turn * image.pose.cam_from_world));
+          const Eigen::Vector3d minus =
+              OmegaPhiKappa(GridFromPhoto(grid, turn.conjugate() * image.pose.cam_from_world));
+          for (int a = 0; a < 3; ++a) d(a, k) = WrapAngle(plus[a] - minus[a]) / (2.0 * eps);
+        }
+        c.sigma_opk_deg =
+            (d * ip->rotation_cov * d.transpose()).diagonal().cwiseMax(0.0).cwiseSqrt() * 180.0 / M_PI;
+      }
+    }
     if (image.gps_prior) {
       c.has_prior = true;
       c.prior_rejected = rejected_gps.count(static_cast<int>(&image - model->images.data())) > 0;
@@ -737,6 +816,49 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       c.sigma_v_m = image.gps_prior->sigma_v_m;
     }
     report.cameras.push_back(c);
+  }
+  if (!precision.computed) {
+    report.findings.push_back(Finding::Warning(
+        "PRECISION_NOT_COMPUTED", "posterior standard deviations and the marks' w-test are missing: " + precision.note));
+  }
+  // Data snooping on the marks: the largest |w| beyond the critical value is
+  // the likeliest blunder (one at a time: a blunder raises its neighbours'
+  // w too, less).
+  {
+    MarkResult* worst = nullptr;
+    int above = 0;
+    for (const MarkTest& t : precision.marks) {
+      MarkResult m;
+      m.point = model->points[t.point].name;
+      m.image = model->images[t.image].name;
+      m.role = model->points[t.point].role;
+      m.residual_px = t.residual_px;
+      m.redundancy = t.redundancy;
+      m.w = t.w;
+      report.marks.push_back(m);
+      above += t.MaxAbsW() > report.w_critical;
+    }
+    for (MarkResult& m : report.marks) {
+      if (m.w.cwiseAbs().maxCoeff() > report.w_critical &&
+          (!worst || m.w.cwiseAbs().maxCoeff() > worst->w.cwiseAbs().maxCoeff())) {
+        worst = &m;
+      }
+    }
+    if (worst) {
+      worst->rejected = true;
+      char text[400];
+      std::snprintf(text, sizeof text,
+                    "Baarda's w-test rejects the mark of '%s' on image '%s': w = %.1f (residual %.2f, %.2f px; "
+                    "critical value %.2f at alpha 0.1 %%)%s",
+                    worst->point.c_str(), worst->image.c_str(),
+                    std::abs(worst->w.x()) > std::abs(worst->w.y()) ? worst->w.x() : worst->w.y(),
+                    worst->residual_px.x(), worst->residual_px.y(), report.w_critical,
+                    above > 1 ? ("; " + std::to_string(above - 1) +
+                                 " more marks above it, likely raised by this one: measure it again and re-run")
+                                    .c_str()
+                              : "; measure it again and re-run");
+      report.findings.push_back(Finding::Warning("MARK_BLUNDER", text, {worst->point, worst->image}));
+    }
   }
   ApplyQualityGates(*model, options.gates, &report);
   ReportProgress(options.progress, 1.0, "georeferenced");

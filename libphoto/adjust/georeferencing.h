@@ -90,6 +90,21 @@ struct GroundPointResult {
   Eigen::Vector3d adjusted_crs = Eigen::Vector3d::Zero();
   Eigen::Vector3d d_m = Eigen::Vector3d::Zero();  // adjusted − surveyed (m)
   double reprojection_rms_px = 0.0;
+  // Posterior standard deviations of the adjusted (control, check in the
+  // bundle) or triangulated (independent check) position, on the axes of d_m.
+  bool has_precision = false;
+  Eigen::Vector3d sigma_m = Eigen::Vector3d::Zero();
+};
+
+// Baarda's w-test of one target mark (MarkTest), by name.
+struct MarkResult {
+  std::string point;
+  std::string image;
+  PointRole role = PointRole::kControl;
+  Eigen::Vector2d residual_px = Eigen::Vector2d::Zero();  // adjusted − observed
+  Eigen::Vector2d redundancy = Eigen::Vector2d::Zero();
+  Eigen::Vector2d w = Eigen::Vector2d::Zero();
+  bool rejected = false;  // |w| above the critical value
 };
 
 struct CameraResult {
@@ -102,6 +117,16 @@ struct CameraResult {
   Eigen::Vector3d d_enu_m = Eigen::Vector3d::Zero();
   double sigma_h_m = 0.0;
   double sigma_v_m = 0.0;
+  // Exterior orientation in the output CRS: the centre, and ω, φ, κ of
+  // R = Rx(ω) Ry(φ) Rz(κ), the rotation from the photo frame (x right, y up
+  // the image, z towards the viewer, out of the lens) to the CRS's grid axes
+  // (easting, northing, up; for a geographic CRS the local east, north, up).
+  // A nadir photo with its top to the north has ω = φ = κ = 0.
+  Eigen::Vector3d position_crs = Eigen::Vector3d::Zero();
+  Eigen::Vector3d opk_deg = Eigen::Vector3d::Zero();
+  bool has_precision = false;
+  Eigen::Vector3d sigma_position_m = Eigen::Vector3d::Zero();  // on the grid axes
+  Eigen::Vector3d sigma_opk_deg = Eigen::Vector3d::Zero();
 };
 
 // Camera GPS against a datum fixed by control alone (step 2), before the
@@ -129,6 +154,7 @@ struct GeoreferenceReport {
   double helmert_rms_m = 0.0;
   GpsVersusControl gps_vs_control;
   BlockGeometry geometry;         // after the initial similarity
+  bool check_points_in_bundle = false;  // check points as free points of the bundle
   bool refinement_auto = true;    // refinement chosen (true) or given by the user
   std::string refined;            // what the final adjustment refined
   std::string refinement_reason;  // why
@@ -138,7 +164,13 @@ struct GeoreferenceReport {
   std::vector<GroundPointResult> check;
   AccuracyStats control_stats;
   AccuracyStats check_stats;
-  std::vector<CameraResult> cameras;
+  std::vector<CameraResult> cameras;  // every registered image
+  // Data snooping on the target marks (control, and check points inside the
+  // bundle): Baarda's w-test at the critical value below (α0 = 0.1 %,
+  // two-sided normal); precision_note says why the statistics are missing.
+  std::vector<MarkResult> marks;
+  double w_critical = 3.29;
+  std::string precision_note;
   // Warnings and errors with stable codes (findings.h); SurveyStatus() of
   // them is the survey's status.
   std::vector<Finding> findings;

@@ -39,6 +39,10 @@ void SparseModel::Validate() const {
       throw InvalidArgument("observation " + std::to_string(i) +
                             " has non-finite pixel coordinates");
     }
+    if (!(obs.sigma_px >= 0.0) || !std::isfinite(obs.sigma_px)) {
+      throw InvalidArgument("observation " + std::to_string(i) + " has sigma " +
+                            std::to_string(obs.sigma_px) + " px; expected >= 0 (0: by kind)");
+    }
   }
 }
 

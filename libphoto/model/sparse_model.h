@@ -83,6 +83,9 @@ struct Observation {
   int point = 0;  // index into SparseModel::points
   Eigen::Vector2d xy = Eigen::Vector2d::Zero();  // px
   int keypoint = -1;  // index of the image's keypoint, -1 when unknown
+  // Standard deviation of this measurement (px); 0: the adjustment's sigma
+  // for its kind (tie point or target mark).
+  double sigma_px = 0.0;
 };
 
 struct SparseModel {

@@ -33,6 +33,11 @@ nlohmann::json PointsJson(const std::vector<GroundPointResult>& points, const Ac
       pj["reprojection_rms_px"] = p.reprojection_rms_px;
       pj["surveyed"] = {p.surveyed_crs.x(), p.surveyed_crs.y(), p.surveyed_crs.z()};
       pj["adjusted"] = {p.adjusted_crs.x(), p.adjusted_crs.y(), p.adjusted_crs.z()};
+      if (p.has_precision) {
+        pj["sigma_x_m"] = p.sigma_m.x();
+        pj["sigma_y_m"] = p.sigma_m.y();
+        pj["sigma_z_m"] = p.sigma_m.z();
+      }
     } else {
       pj["why_not"] = p.why_not;
     }
@@ -136,9 +141,56 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
       cj["sigma_h_m"] = c.sigma_h_m;
       cj["sigma_v_m"] = c.sigma_v_m;
     }
+    cj["position"] = {c.position_crs.x(), c.position_crs.y(), c.position_crs.z()};
+    cj["omega_phi_kappa_deg"] = {c.opk_deg.x(), c.opk_deg.y(), c.opk_deg.z()};
+    if (c.has_precision) {
+      cj["sigma_position_m"] = {c.sigma_position_m.x(), c.sigma_position_m.y(), c.sigma_position_m.z()};
+      cj["sigma_omega_phi_kappa_deg"] = {c.sigma_opk_deg.x(), c.sigma_opk_deg.y(), c.sigma_opk_deg.z()};
+    }
     j["cameras"].push_back(cj);
   }
+  j["exterior_orientation"] = {
+      {"position", "camera centre in the output CRS (for a geographic CRS: lon, lat, ellipsoidal h)"},
+      {"angles", "omega, phi, kappa (deg) of R = Rx(omega) Ry(phi) Rz(kappa), the rotation from the photo frame "
+                 "(x right, y up the image, z out of the lens towards the viewer) to the grid axes (easting, "
+                 "northing, up); a nadir photo with its top to the north has 0, 0, 0"},
+      {"sigmas", "posterior standard deviations (scaled by sigma0^2), position on the grid axes"}};
   j["adjustment"] = BundleSummaryJson(r.bundle, model);
+  {
+    const BundlePrecision& p = r.bundle.precision;
+    nlohmann::json pj;
+    pj["computed"] = p.computed;
+    if (!p.computed) pj["note"] = p.note;
+    pj["variance_factor"] = p.variance_factor;
+    pj["scaling"] = "every sigma is a-posteriori: the a-priori covariance (J^T J)^-1 times sigma0^2";
+    pj["time_s"] = p.time_s;
+    pj["check_points"] = r.check_points_in_bundle
+                             ? "free points inside the bundle (no prior; their marks tie the block)"
+                             : "independent: triangulated after the adjustment with the cameras held; their "
+                               "sigmas carry the cameras' covariance";
+    if (p.has_gps_offset) {
+      pj["gps_offset_sigma"] = {{"e_m", std::sqrt(p.gps_offset_cov(0, 0))},
+                                {"n_m", std::sqrt(p.gps_offset_cov(1, 1))},
+                                {"u_m", std::sqrt(p.gps_offset_cov(2, 2))}};
+    }
+    j["adjustment"]["precision"] = pj;
+    nlohmann::json marks = nlohmann::json::array();
+    for (const MarkResult& m : r.marks) {
+      marks.push_back({{"point", m.point},
+                       {"image", m.image},
+                       {"role", m.role == PointRole::kControl ? "control" : "check"},
+                       {"residual_px", {m.residual_px.x(), m.residual_px.y()}},
+                       {"redundancy", {m.redundancy.x(), m.redundancy.y()}},
+                       {"w", {m.w.x(), m.w.y()}},
+                       {"rejected", m.rejected}});
+    }
+    j["adjustment"]["data_snooping"] = {
+        {"test", "Baarda's w-test on each mark's image residual (adjusted - observed), per axis: "
+                 "w = v / (sigma sqrt(r)), r the redundancy number"},
+        {"critical_value", r.w_critical},
+        {"alpha", 0.001},
+        {"marks", marks}};
+  }
   j["adjustment"]["helmert"] = {{"correspondences", r.helmert_correspondences},
                                 {"inliers", r.helmert_inliers},
                                 {"rms_m", r.helmert_rms_m},

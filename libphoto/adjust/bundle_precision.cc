@@ -1,0 +1,228 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/adjust/bundle_precision.h"
+
+#include <ceres/crs_matrix.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <map>
+
+namespace aerotri {
+namespace internal {
+namespace {
+
+using RowSparse = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+
+RowSparse ToEigen(const ceres::CRSMatrix& crs) {
+  RowSparse m(crs.num_rows, crs.num_cols);
+  std::vector<Eigen::Triplet<double, int>> triplets;
+  triplets.reserve(crs.values.size());
+  for (int r = 0; r < crs.num_rows; ++r) {
+    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) triplets.emplace_back(r, crs.cols[k], crs.values[k]);
+  }
+  m.setFromTriplets(triplets.begin(), triplets.end());
+  return m;
+}
+
+// The rows [r0, r1) of a row-major matrix split into the columns [c0, c0+3)
+// (dense, rows x 3) and the columns from `first` on (dense over the listed
+// columns `cols`, which the function fills in ascending order).
+void SplitRows(const RowSparse& j, int r0, int r1, int c0, int first, Eigen::MatrixXd* a,
+               std::vector<int>* cols, Eigen::MatrixXd* b) {
+  std::map<int, int> index;
+  for (int r = r0; r < r1; ++r) {
+    for (RowSparse::InnerIterator it(j, r); it; ++it) {
+      if (it.col() >= first) index.emplace(it.col() - first, 0);
+    }
+  }
+  cols->clear();
+  for (auto& [c, k] : index) {
+    k = static_cast<int>(cols->size());
+    cols->push_back(c);
+  }
+  a->setZero(r1 - r0, 3);
+  b->setZero(r1 - r0, static_cast<Eigen::Index>(cols->size()));
+  for (int r = r0; r < r1; ++r) {
+    for (RowSparse::InnerIterator it(j, r); it; ++it) {
+      if (it.col() >= first) {
+        (*b)(r - r0, index[it.col() - first]) = it.value();
+      } else if (it.col() >= c0 && it.col() < c0 + 3) {
+        (*a)(r - r0, it.col() - c0) = it.value();
+      }
+    }
+  }
+}
+
+Eigen::MatrixXd Gather(const Eigen::MatrixXd& m, const std::vector<int>& rows, const std::vector<int>& cols) {
+  Eigen::MatrixXd out(rows.size(), cols.size());
+  for (size_t a = 0; a < rows.size(); ++a) {
+    for (size_t b = 0; b < cols.size(); ++b) out(a, b) = m(rows[a], cols[b]);
+  }
+  return out;
+}
+
+// Columns of the 3 rows of T for one point, with their values.
+struct PointCoupling {
+  std::vector<int> cols;  // reduced columns
+  Eigen::MatrixXd t;      // 3 x cols: V_p⁻¹ W_p
+  Eigen::Matrix3d v_inv = Eigen::Matrix3d::Zero();
+};
+
+}  // namespace
+
+PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
+  PrecisionSolution out;
+  ceres::Problem& problem = *p.problem;
+  const int np = static_cast<int>(p.points.size());
+  const int n3 = 3 * np;
+  int nc = 0;
+  for (double* block : p.reduced) {
+    out.reduced_offset.push_back(nc);
+    nc += problem.ParameterBlockTangentSize(block);
+  }
+  std::vector<double*> blocks = p.points;
+  blocks.insert(blocks.end(), p.reduced.begin(), p.reduced.end());
+
+  ceres::Problem::EvaluateOptions eval;
+  eval.parameter_blocks = blocks;
+  eval.residual_blocks = p.adjusted;
+  eval.apply_loss_function = true;
+  eval.num_threads = std::max(1, p.num_threads);
+  ceres::CRSMatrix crs;
+  if (!problem.Evaluate(eval, nullptr, nullptr, nullptr, &crs)) {
+    out.note = "the Jacobian could not be evaluated at the solution";
+    return out;
+  }
+  const RowSparse j = ToEigen(crs);
+  crs = ceres::CRSMatrix();
+  const Eigen::SparseMatrix<double, Eigen::ColMajor, int> jc = j;
+  const Eigen::SparseMatrix<double, Eigen::ColMajor, int> jp_t = jc.leftCols(n3).transpose();
+  const Eigen::SparseMatrix<double, Eigen::ColMajor, int> jr = jc.rightCols(nc);
+  // V (block diagonal) and W in row-major form for per-point access.
+  const RowSparse v = (jp_t * jc.leftCols(n3)).pruned();
+  const RowSparse w = (jp_t * jr).pruned();
+  Eigen::MatrixXd s = Eigen::MatrixXd(jr.transpose() * jr);
+
+  std::vector<PointCoupling> coupling(np);
+  for (int pt = 0; pt < np; ++pt) {
+    Eigen::Matrix3d vp = Eigen::Matrix3d::Zero();
+    for (int r = 0; r < 3; ++r) {
+      for (RowSparse::InnerIterator it(v, 3 * pt + r); it; ++it) {
+        if (it.col() >= 3 * pt && it.col() < 3 * pt + 3) vp(r, it.col() - 3 * pt) = it.value();
+      }
+    }
+    Eigen::FullPivLU<Eigen::Matrix3d> lu(vp);
+    if (lu.rank() < 3) {
+      out.note = "a point's position is not determined by its observations (rays parallel)";
+      return out;
+    }
+    PointCoupling& c = coupling[pt];
+    c.v_inv = lu.inverse();
+    Eigen::MatrixXd unused_a, wp;
+    SplitRows(w, 3 * pt, 3 * pt + 3, /*c0=*/-10, /*first=*/0, &unused_a, &c.cols, &wp);
+    c.t = c.v_inv * wp;
+    const Eigen::MatrixXd update = wp.transpose() * c.t;
+    for (size_t a = 0; a < c.cols.size(); ++a) {
+      for (size_t b = 0; b < c.cols.size(); ++b) s(c.cols[a], c.cols[b]) -= update(a, b);
+    }
+  }
+
+  if (nc > 0) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(s.selfadjointView<Eigen::Lower>());
+    if (llt.info() != Eigen::Success) {
+      out.note = "the reduced normal equations are singular: the datum or some intrinsics are not determined";
+      return out;
+    }
+    out.reduced_cov = llt.solve(Eigen::MatrixXd::Identity(nc, nc));
+    if (!out.reduced_cov.allFinite() || (out.reduced_cov.diagonal().array() <= 0.0).any()) {
+      out.note = "the reduced normal equations are numerically singular";
+      return out;
+    }
+  }
+
+  out.point_cov.resize(np);
+  for (int pt = 0; pt < np; ++pt) {
+    const PointCoupling& c = coupling[pt];
+    out.point_cov[pt] = c.v_inv;
+    if (!c.cols.empty()) out.point_cov[pt] += c.t * Gather(out.reduced_cov, c.cols, c.cols) * c.t.transpose();
+  }
+
+  // Points triangulated with the cameras held (independent check points).
+  if (!p.checks.empty()) {
+    std::vector<double*> check_blocks;
+    std::vector<ceres::ResidualBlockId> ids;
+    std::vector<int> first_row;
+    for (const auto& rows : p.checks) {
+      check_blocks.push_back(rows.position);
+      first_row.push_back(2 * static_cast<int>(ids.size()));
+      ids.insert(ids.end(), rows.ids.begin(), rows.ids.end());
+    }
+    first_row.push_back(2 * static_cast<int>(ids.size()));
+    const int nk3 = 3 * static_cast<int>(check_blocks.size());
+    check_blocks.insert(check_blocks.end(), p.reduced.begin(), p.reduced.end());
+    eval.parameter_blocks = check_blocks;
+    eval.residual_blocks = ids;
+    if (!problem.Evaluate(eval, nullptr, nullptr, nullptr, &crs)) {
+      out.note = "the check points' Jacobian could not be evaluated";
+      return out;
+    }
+    const RowSparse jk = ToEigen(crs);
+    for (size_t k = 0; k < p.checks.size(); ++k) {
+      Eigen::MatrixXd a, b;
+      std::vector<int> cols;
+      SplitRows(jk, first_row[k], first_row[k + 1], 3 * static_cast<int>(k), nk3, &a, &cols, &b);
+      const Eigen::Matrix3d ata_inv = (a.transpose() * a).inverse();
+      Eigen::Matrix3d cov = ata_inv;
+      if (!cols.empty()) {
+        const Eigen::MatrixXd g = ata_inv * a.transpose() * b;
+        cov += g * Gather(out.reduced_cov, cols, cols) * g.transpose();
+      }
+      out.check_cov.push_back(cov);
+    }
+  }
+
+  // Cofactors of the target marks' residuals.
+  if (!p.marks.empty()) {
+    std::vector<ceres::ResidualBlockId> ids;
+    for (const auto& rows : p.marks) ids.push_back(rows.ids.at(0));
+    eval.parameter_blocks = blocks;
+    eval.residual_blocks = ids;
+    eval.apply_loss_function = false;
+    std::vector<double> residuals;
+    if (!problem.Evaluate(eval, nullptr, &residuals, nullptr, &crs)) {
+      out.note = "the marks' Jacobian could not be evaluated";
+      return out;
+    }
+    const RowSparse jm = ToEigen(crs);
+    for (size_t m = 0; m < p.marks.size(); ++m) {
+      const int pt = p.marks[m].point;
+      const PointCoupling& c = coupling.at(pt);
+      Eigen::MatrixXd a, b;
+      std::vector<int> cols;
+      SplitRows(jm, 2 * static_cast<int>(m), 2 * static_cast<int>(m) + 2, 3 * pt, n3, &a, &cols, &b);
+      // g = a T_p − b over the union of both column sets.
+      std::vector<int> all = c.cols;
+      all.insert(all.end(), cols.begin(), cols.end());
+      std::sort(all.begin(), all.end());
+      all.erase(std::unique(all.begin(), all.end()), all.end());
+      Eigen::MatrixXd g = Eigen::MatrixXd::Zero(2, static_cast<Eigen::Index>(all.size()));
+      auto at = [&](int col) { return static_cast<int>(std::lower_bound(all.begin(), all.end(), col) - all.begin()); };
+      const Eigen::MatrixXd at_p = a * c.t;
+      for (size_t k = 0; k < c.cols.size(); ++k) g.col(at(c.cols[k])) += at_p.col(k);
+      for (size_t k = 0; k < cols.size(); ++k) g.col(at(cols[k])) -= b.col(k);
+      Eigen::Matrix2d q = a * c.v_inv * a.transpose();
+      if (!all.empty()) q += g * Gather(out.reduced_cov, all, all) * g.transpose();
+      MarkCofactor mc;
+      mc.residual = Eigen::Vector2d(residuals[2 * m], residuals[2 * m + 1]);
+      mc.qvv = Eigen::Vector2d(std::max(0.0, 1.0 - q(0, 0)), std::max(0.0, 1.0 - q(1, 1)));
+      out.marks.push_back(mc);
+    }
+  }
+  out.ok = true;
+  return out;
+}
+
+}  // namespace internal
+}  // namespace aerotri

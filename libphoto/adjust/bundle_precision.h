@@ -1,0 +1,67 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// Precision of a solved bundle from its normal equations, through the
+// reduced camera system (the same Schur elimination the solver uses):
+//
+//   N = JᵀJ = [V W; Wᵀ U]   V: the points' 3x3 blocks, U: everything else
+//   S = U − Wᵀ V⁻¹ W        dense, one row per camera / intrinsic / offset
+//   Σ_U = S⁻¹,   Σ_p = V_p⁻¹ + T_p Σ_U T_pᵀ,   Σ_pU = −T_p Σ_U,   T = V⁻¹ W
+//
+// J is Ceres' Jacobian of the weighted residuals (robust loss applied, as in
+// the solve) in the tangent space of every varying block, so Σ is the
+// a-priori covariance (unit weight); callers scale it by σ0².
+//
+// Two more products of the same inverse:
+//  - points outside the adjustment (independent check points), triangulated
+//    with the cameras held: Σ_X = (AᵀA)⁻¹ + G Σ_U Gᵀ, G = (AᵀA)⁻¹ Aᵀ B, where
+//    A, B are their rows' Jacobians in the point and in the reduced blocks;
+//  - the cofactor of the residuals of chosen observations (target marks),
+//    Q_vv = I − J_i Σ J_iᵀ with J_i the row's Jacobian without the loss, for
+//    Baarda's w-test w = v / √q_vv.
+// A 600-image block (3,700 reduced parameters) takes a few seconds: the
+// dense inverse of S dominates.
+
+#include <ceres/problem.h>
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+namespace aerotri {
+namespace internal {
+
+struct PrecisionProblem {
+  ceres::Problem* problem = nullptr;
+  std::vector<double*> points;   // 3-vectors eliminated first (no manifold)
+  std::vector<double*> reduced;  // the other varying blocks, in this order
+  std::vector<ceres::ResidualBlockId> adjusted;  // the adjustment's residuals
+  struct Rows {
+    std::vector<ceres::ResidualBlockId> ids;
+    int point = -1;            // index into points (marks), or -1
+    double* position = nullptr;  // the point's block (outside points, for checks)
+  };
+  std::vector<Rows> marks;   // one residual block each, of a point in `points`
+  std::vector<Rows> checks;  // residual blocks added after the solve, not in `adjusted`
+  int num_threads = 1;
+};
+
+struct MarkCofactor {
+  Eigen::Vector2d residual = Eigen::Vector2d::Zero();  // weighted, no loss
+  Eigen::Vector2d qvv = Eigen::Vector2d::Zero();       // redundancy numbers
+};
+
+struct PrecisionSolution {
+  bool ok = false;
+  std::string note;  // why not, when !ok
+  std::vector<int> reduced_offset;  // first column of each reduced block in reduced_cov
+  Eigen::MatrixXd reduced_cov;      // Σ_U, tangent coordinates
+  std::vector<Eigen::Matrix3d> point_cov;  // index-aligned with points
+  std::vector<Eigen::Matrix3d> check_cov;  // with checks
+  std::vector<MarkCofactor> marks;
+};
+
+PrecisionSolution SolvePrecision(const PrecisionProblem& p);
+
+}  // namespace internal
+}  // namespace aerotri
