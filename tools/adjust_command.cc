@@ -58,7 +58,7 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
   cmd->add_option("--crs", a->crs,
                   "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
                   "file's CRS, else the UTM zone of the survey centre");
-  AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine, &a->tie_sigma_px, &a->mark_sigma_px);
+  AddAdjustmentPolicyOptions(cmd, &a->policy);
   cmd->add_option("--loss", a->loss, "Robust loss on reprojection residuals")
       ->check(CLI::IsMember({"none", "huber", "cauchy", "tukey"}))->capture_default_str();
   cmd->add_option("--loss-scale", a->loss_scale_px, "Robust loss scale (pixels)")
@@ -91,14 +91,11 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   options.output_crs = args.crs;
   options.gcp_sigma_h_m = args.gcp_sigma_h_m;
   options.gcp_sigma_v_m = args.gcp_sigma_v_m;
-  options.gps_offset = *ParseGpsOffsetPolicy(args.gps_offset);
   options.progress = ctx.Progress("adjust");
   BundleOptions& bundle = options.bundle;
-  options.auto_refine = args.refine == "auto";
-  ApplyAdjustmentOptions(args.loss, args.loss_scale_px, options.auto_refine ? "all" : args.refine, &bundle);
+  ApplyAdjustmentOptions(args.loss, args.loss_scale_px, "all", &bundle);
+  ApplyAdjustmentPolicy(args.policy, &options);
   bundle.outlier_threshold_px = args.outlier_threshold_px;
-  bundle.observation_sigma_px = args.tie_sigma_px;
-  bundle.mark_sigma_px = args.mark_sigma_px;
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;
 

@@ -21,12 +21,25 @@ namespace aerotri {
 // Sets *run to the chosen command's action once parsing succeeds.
 using CommandAction = std::function<int(ToolContext&)>;
 
+// The georeferenced adjustment's stochastic model and solve, shared by run
+// and adjust: --gps-offset and --refine (auto by default), --tie-sigma-px,
+// --mark-sigma-px, --checkpoints-in-bundle and the solver's tolerances.
+struct AdjustmentPolicyArgs {
+  std::string gps_offset = "auto";  // never, auto, always
+  std::string refine = "auto";
+  double tie_sigma_px = 1.0;   // image sigma of tie points
+  double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
+  bool checkpoints_in_bundle = false;
+  double function_tolerance = SurveyBundleOptions().function_tolerance;
+  double parameter_tolerance = SurveyBundleOptions().parameter_tolerance;
+  double gradient_tolerance = SurveyBundleOptions().gradient_tolerance;
+};
+void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* args);
+// Into the georeferencing options (the loss is left as it is).
+void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& args, GeoreferenceOptions* options);
+
 // --loss NAME --loss-scale PX --refine WHAT, shared by the commands that
 // adjust; throws InvalidArgument naming the option and the allowed values.
-// --gps-offset and --refine (auto by default), --tie-sigma-px and
-// --mark-sigma-px, shared by run and adjust.
-void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine,
-                                  double* tie_sigma_px, double* mark_sigma_px);
 
 void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,
                             BundleOptions* options);
@@ -62,11 +75,8 @@ struct AdjustArgs {
   std::string gps_altitude = "egm96";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
-  double tie_sigma_px = 1.0;   // image sigma of tie points
-  double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
-  std::string gps_offset = "auto";  // never, auto, always
+  AdjustmentPolicyArgs policy;
   std::string gcp_pixel_origin = "centre";
-  std::string refine = "auto";
   // The survey defaults of the library (SurveyBundleOptions), not the CLI's own.
   std::string loss = ToString(SurveyBundleOptions().loss);
   double loss_scale_px = SurveyBundleOptions().loss_scale_px;
@@ -111,7 +121,7 @@ int RunSimulate(const SimulateArgs& args, ToolContext& ctx);
 struct RunArgs {
   std::string images_dir;
   std::string output;
-  std::string refine = "auto";  // intrinsics refined in the georeferenced adjustment
+  AdjustmentPolicyArgs policy;  // of the georeferenced adjustment
   bool keep_going = false;
   bool force = false;
   int threads = 0;
@@ -127,9 +137,6 @@ struct RunArgs {
   std::string gcp_pixel_origin = "centre";
   double gcp_sigma_h_m = 0.02;
   double gcp_sigma_v_m = 0.03;
-  double tie_sigma_px = 1.0;   // image sigma of tie points
-  double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
-  std::string gps_offset = "auto";  // never, auto, always
   std::string crs;
   double dense_resolution_m = 0.0;
   int dense_min_views = 2;

@@ -93,7 +93,7 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
         ->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
         ->check(CLI::PositiveNumber)->capture_default_str();
-    AddGeoreferencePolicyOptions(cmd, &a->gps_offset, &a->refine, &a->tie_sigma_px, &a->mark_sigma_px);
+    AddAdjustmentPolicyOptions(cmd, &a->policy);
     cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
   }
   if (groups & kDenseOptions) {
@@ -191,11 +191,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.cog = a.cog;
   o.georef.gcp_sigma_h_m = a.gcp_sigma_h_m;
   o.georef.gcp_sigma_v_m = a.gcp_sigma_v_m;
-  o.georef.gps_offset = *ParseGpsOffsetPolicy(a.gps_offset);
-  o.georef.auto_refine = a.refine == "auto";
-  ApplyRefineOption(o.georef.auto_refine ? "all" : a.refine, &o.georef.bundle);
-  o.georef.bundle.observation_sigma_px = a.tie_sigma_px;
-  o.georef.bundle.mark_sigma_px = a.mark_sigma_px;
+  ApplyAdjustmentPolicy(a.policy, &o.georef);
   o.software_version = VersionString();
   o.command_line = ctx.command_line;
   o.progress = [&ctx](const std::string& stage) { return ctx.Progress(stage); };

@@ -64,25 +64,53 @@ std::string VersionString() {
   return out.str();
 }
 
-void AddGeoreferencePolicyOptions(CLI::App* cmd, std::string* gps_offset, std::string* refine,
-                                  double* tie_sigma_px, double* mark_sigma_px) {
-  cmd->add_option("--tie-sigma-px", *tie_sigma_px, "Image sigma of tie-point measurements (pixels)")
+void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
+  cmd->add_option("--tie-sigma-px", a->tie_sigma_px, "Image sigma of tie-point measurements (pixels)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  cmd->add_option("--mark-sigma-px", *mark_sigma_px,
+  cmd->add_option("--mark-sigma-px", a->mark_sigma_px,
                   "Image sigma of GCP / check-point marks (pixels); 0 = the tie sigma")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  cmd->add_option("--gps-offset", *gps_offset,
+  cmd->add_option("--gps-offset", a->gps_offset,
                   "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
                   "control points: auto (when the control shows a significant one), always or never")
       ->check(CLI::IsMember({"never", "auto", "always"}))
       ->capture_default_str();
-  cmd->add_option("--refine", *refine,
+  cmd->add_option("--refine", a->refine,
                   "Intrinsics refined: auto (all that the block determines; a focal length known to worse "
                   "than 1 % is held at its EXIF value), none, focal, focal,pp, all, or a list "
                   "(f,cx,cy,k1,k2,k3,p1,p2)")
       ->capture_default_str();
+  cmd->add_flag("--checkpoints-in-bundle", a->checkpoints_in_bundle,
+                "Carry check points as free points inside the bundle (no prior), as classic aerial "
+                "triangulation does; default: independent, triangulated afterwards with the cameras held");
+  cmd->add_option("--function-tolerance", a->function_tolerance,
+                  "Solver stops when the cost changes by less than this fraction")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--parameter-tolerance", a->parameter_tolerance,
+                  "Solver stops when a step changes the parameters by less than this fraction")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--gradient-tolerance", a->gradient_tolerance,
+                  "Solver stops when the gradient's max norm falls below this")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+}
+
+void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o) {
+  const auto policy = ParseGpsOffsetPolicy(a.gps_offset);
+  if (!policy) throw InvalidArgument("--gps-offset: expected never, auto or always; got '" + a.gps_offset + "'");
+  o->gps_offset = *policy;
+  o->auto_refine = a.refine == "auto";
+  ApplyRefineOption(o->auto_refine ? "all" : a.refine, &o->bundle);
+  o->bundle.observation_sigma_px = a.tie_sigma_px;
+  o->bundle.mark_sigma_px = a.mark_sigma_px;
+  o->bundle.check_points_in_bundle = a.checkpoints_in_bundle;
+  o->bundle.function_tolerance = a.function_tolerance;
+  o->bundle.parameter_tolerance = a.parameter_tolerance;
+  o->bundle.gradient_tolerance = a.gradient_tolerance;
 }
 
 void ApplyAdjustmentOptions(const std::string& loss, double loss_scale_px, const std::string& refine,

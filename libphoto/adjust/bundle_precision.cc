@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <map>
 
+#include "libphoto/base/parallel.h"
+
 namespace aerotri {
 namespace internal {
 namespace {
@@ -70,6 +72,44 @@ struct PointCoupling {
   Eigen::Matrix3d v_inv = Eigen::Matrix3d::Zero();
 };
 
+// S⁻¹ of a symmetric positive definite S through S = L Lᵀ: L⁻¹ by column
+// blocks (each block's trailing triangle only, nc³/3), then S⁻¹ = L⁻ᵀ L⁻¹ by
+// tiles of the lower triangle (nc³/3), both on `threads` threads; about a
+// quarter of the work of solving against the identity.
+bool InverseByCholesky(const Eigen::MatrixXd& s, int threads, Eigen::MatrixXd* inverse) {
+  const Eigen::LLT<Eigen::MatrixXd> llt(s.selfadjointView<Eigen::Lower>());
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::MatrixXd& l = llt.matrixLLT();  // lower triangle holds L
+  const Eigen::Index n = s.rows();
+  const Eigen::Index b = 96;
+  const Eigen::Index blocks = (n + b - 1) / b;
+  Eigen::MatrixXd l_inv = Eigen::MatrixXd::Zero(n, n);
+  const unsigned t = ThreadCount(threads);
+  ParallelFor(static_cast<std::size_t>(blocks), t, [&](std::size_t k) {
+    const Eigen::Index c0 = static_cast<Eigen::Index>(k) * b;
+    const Eigen::Index w = std::min(b, n - c0);
+    const Eigen::Index m = n - c0;
+    Eigen::MatrixXd x = Eigen::MatrixXd::Identity(m, w);
+    l.block(c0, c0, m, m).triangularView<Eigen::Lower>().solveInPlace(x);
+    l_inv.block(c0, c0, m, w) = x;
+  });
+  inverse->resize(n, n);
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> tiles;
+  for (Eigen::Index i = 0; i < blocks; ++i) {
+    for (Eigen::Index j = 0; j <= i; ++j) tiles.emplace_back(i, j);
+  }
+  ParallelFor(tiles.size(), t, [&](std::size_t k) {
+    const Eigen::Index r0 = tiles[k].first * b, c0 = tiles[k].second * b;
+    const Eigen::Index wr = std::min(b, n - r0), wc = std::min(b, n - c0);
+    // Rows of L⁻¹ below r0 only: above them column r0.. is zero.
+    const Eigen::MatrixXd tile =
+        l_inv.block(r0, r0, n - r0, wr).transpose() * l_inv.block(r0, c0, n - r0, wc);
+    inverse->block(r0, c0, wr, wc) = tile;
+    inverse->block(c0, r0, wc, wr) = tile.transpose();
+  });
+  return inverse->allFinite();
+}
+
 }  // namespace
 
 PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
@@ -130,12 +170,10 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   }
 
   if (nc > 0) {
-    const Eigen::LLT<Eigen::MatrixXd> llt(s.selfadjointView<Eigen::Lower>());
-    if (llt.info() != Eigen::Success) {
+    if (!InverseByCholesky(s, p.num_threads, &out.reduced_cov)) {
       out.note = "the reduced normal equations are singular: the datum or some intrinsics are not determined";
       return out;
     }
-    out.reduced_cov = llt.solve(Eigen::MatrixXd::Identity(nc, nc));
     if (!out.reduced_cov.allFinite() || (out.reduced_cov.diagonal().array() <= 0.0).any()) {
       out.note = "the reduced normal equations are numerically singular";
       return out;

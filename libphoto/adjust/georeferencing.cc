@@ -19,6 +19,12 @@ BundleOptions SurveyBundleOptions() {
   o.loss_scale_px = 1.0;
   o.outlier_threshold_px = 4.0;
   o.min_images_to_refine_intrinsics = 3;
+  // To the optimum: a survey's figures must not depend on where the solve
+  // started (along a strong omega-Y correlation a 1e-6 function tolerance
+  // stops short by millimetres).
+  o.function_tolerance = 1e-12;
+  o.parameter_tolerance = 1e-12;
+  o.gradient_tolerance = 1e-12;
   return o;
 }
 namespace {

@@ -149,7 +149,11 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"loss_scale_px", g.bundle.loss_scale_px},
           {"outlier_threshold_px", g.bundle.outlier_threshold_px},
           {"tie_sigma_px", g.bundle.observation_sigma_px},
-          {"mark_sigma_px", g.bundle.mark_sigma_px}};
+          {"mark_sigma_px", g.bundle.mark_sigma_px},
+          {"checkpoints_in_bundle", g.bundle.check_points_in_bundle},
+          {"function_tolerance", g.bundle.function_tolerance},
+          {"parameter_tolerance", g.bundle.parameter_tolerance},
+          {"gradient_tolerance", g.bundle.gradient_tolerance}};
 }
 
 nlohmann::json DenseFingerprint(const PipelineOptions& o) {
