@@ -99,23 +99,37 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
     }
     const Eigen::Vector3d xyz(v[0], v[1], v[2]);
     std::string name;
-    std::optional<double> sigma_h, sigma_v;
+    std::optional<double> sigma_h, sigma_v, sigma_px;
+    std::optional<double> sigma_axis[3];
     for (size_t c = 6; c < cols.size(); ++c) {
       const std::string& extra = cols[c];
       const size_t eq = extra.find('=');
       if (eq != std::string::npos) {
         const std::string key = extra.substr(0, eq);
-        if (key == "sigma_h" || key == "sigma_v") {
+        std::optional<double>* target = key == "sigma_h"    ? &sigma_h
+                                        : key == "sigma_v"  ? &sigma_v
+                                        : key == "sigma_x"  ? &sigma_axis[0]
+                                        : key == "sigma_y"  ? &sigma_axis[1]
+                                        : key == "sigma_z"  ? &sigma_axis[2]
+                                        : key == "sigma_px" ? &sigma_px
+                                                            : nullptr;
+        if (target) {
           const auto value = ParseNumber(extra.substr(eq + 1));
-          if (!value || *value <= 0.0) {
-            throw ParseError(p, number, "expected a positive number of metres for " + key +
+          if (!value || !(*value > 0.0) || !std::isfinite(*value)) {
+            throw ParseError(p, number, "expected a positive number of " +
+                                            std::string(key == "sigma_px" ? "pixels" : "metres") + " for " + key +
                                             ", got '" + extra.substr(eq + 1) + "'");
           }
-          (key == "sigma_h" ? sigma_h : sigma_v) = *value;
+          *target = *value;
         }
         continue;
       }
       if (c == 6) name = extra;
+    }
+    const int axes = sigma_axis[0].has_value() + sigma_axis[1].has_value() + sigma_axis[2].has_value();
+    if (axes != 0 && axes != 3) {
+      throw ParseError(p, number, "expected sigma_x, sigma_y and sigma_z together, got " + std::to_string(axes) +
+                                      " of them");
     }
     if (name.empty()) {
       std::ostringstream key;
@@ -139,7 +153,8 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
     }
     if (sigma_h) point.sigma_h_m = sigma_h;
     if (sigma_v) point.sigma_v_m = sigma_v;
-    point.measurements.push_back({cols[5], Eigen::Vector2d(v[3] - shift, v[4] - shift), number});
+    if (axes == 3) point.sigma_xyz_m = Eigen::Vector3d(*sigma_axis[0], *sigma_axis[1], *sigma_axis[2]);
+    point.measurements.push_back({cols[5], Eigen::Vector2d(v[3] - shift, v[4] - shift), number, sigma_px});
   }
   if (file.crs.empty()) throw ParseError(p, 0, "empty file: expected a CRS on the first line");
   return file;
@@ -155,6 +170,11 @@ void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path) {
             << std::setprecision(12) << m.image << " " << point.name;
         if (point.sigma_h_m) out << " sigma_h=" << *point.sigma_h_m;
         if (point.sigma_v_m) out << " sigma_v=" << *point.sigma_v_m;
+        if (point.sigma_xyz_m) {
+          out << " sigma_x=" << point.sigma_xyz_m->x() << " sigma_y=" << point.sigma_xyz_m->y()
+              << " sigma_z=" << point.sigma_xyz_m->z();
+        }
+        if (m.sigma_px) out << " sigma_px=" << *m.sigma_px;
         out << "\n";
       }
     }

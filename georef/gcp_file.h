@@ -9,9 +9,14 @@
 // geo_x, geo_y are in the CRS's normalised axis order (easting, northing; or
 // longitude, latitude for a geographic CRS); geo_z is ellipsoidal for a 2D
 // CRS and orthometric for a compound one (EPSG:32632+5773). Blank lines and
-// lines starting with '#' are skipped. Extras may give the point's surveyed
-// standard deviations as `sigma_h=0.02 sigma_v=0.03` (metres); other extras
-// are ignored. Without a name, lines with identical coordinates are one point.
+// lines starting with '#' are skipped. Extras (key=value, after the name)
+// state the stochastic model:
+//   sigma_h=0.02 sigma_v=0.03             the point's survey sigmas (metres)
+//   sigma_x=0.02 sigma_y=0.02 sigma_z=0.04  the same on the CRS's own axes
+//                                         (all three; they win over h / v)
+//   sigma_px=0.5                          this measurement's image sigma (px)
+// Other extras are ignored. Without a name, lines with identical coordinates
+// are one point.
 //
 // Pixels: OpenDroneMap reads these files through OpenSfM, whose pixel
 // coordinates put the centre of the top-left pixel at (0, 0) (OpenSfM
@@ -36,6 +41,7 @@ struct GcpMeasurement {
   std::string image;      // file name as written
   Eigen::Vector2d xy_px;  // aerotri convention (centre of top-left pixel = 0, 0)
   int line = 0;
+  std::optional<double> sigma_px;  // its image sigma, when the file states one
 };
 
 struct GroundPoint {
@@ -43,6 +49,7 @@ struct GroundPoint {
   Eigen::Vector3d xyz;  // in the file's CRS, normalised axis order
   std::optional<double> sigma_h_m;
   std::optional<double> sigma_v_m;
+  std::optional<Eigen::Vector3d> sigma_xyz_m;  // on the CRS's axes
   std::vector<GcpMeasurement> measurements;
   int first_line = 0;
 };

@@ -108,6 +108,9 @@ TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
       {"EPSG:32632\n\n1 2 3 -4 5 a.jpg\n", 3, "expected pixel coordinates >= -0.5"},
       {"EPSG:32632\n1 2 3 4 5 a.jpg P sigma_h=-1\n", 2, "positive number of metres for sigma_h"},
       {"EPSG:32632\n1 2 3 4 5 a.jpg P\n1 2 4 4 5 b.jpg P\n", 3, "other coordinates here than on line 2"},
+      {"EPSG:32632\n1 2 3 4 5 a.jpg P sigma_px=0\n", 2, "positive number of pixels for sigma_px, got '0'"},
+      {"EPSG:32632\n1 2 3 4 5 a.jpg P sigma_x=0.1 sigma_z=0.2\n", 2,
+       "expected sigma_x, sigma_y and sigma_z together, got 2 of them"},
       {"1 2 3 4 5 a.jpg\n", 1, "expected a CRS on the first line"},
       {"\n# only a comment\n", 0, "empty file"},
   };
@@ -126,6 +129,29 @@ TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
   EXPECT_THROW(ReadGcpFile(dir / "absent.txt"), IoError);
 }
 
+
+// The stochastic model in the file: per-axis survey sigmas for a point and
+// an image sigma per measurement, read and written back.
+TEST(GcpFile, ReadsAndWritesPerAxisAndPerMeasurementSigmas) {
+  testing::TempDir dir;
+  Write(dir / "gcp_list.txt",
+        "EPSG:32632\n"
+        "100 200 30 10 20 a.jpg P1 sigma_x=0.02 sigma_y=0.03 sigma_z=0.04 sigma_px=0.5\n"
+        "100 200 30 11 21 b.jpg P1\n");
+  const GcpFile file = ReadGcpFile(dir / "gcp_list.txt");
+  ASSERT_EQ(file.points.size(), 1u);
+  const GroundPoint& p = file.points[0];
+  ASSERT_TRUE(p.sigma_xyz_m.has_value());
+  EXPECT_EQ(*p.sigma_xyz_m, Eigen::Vector3d(0.02, 0.03, 0.04));
+  ASSERT_EQ(p.measurements.size(), 2u);
+  EXPECT_EQ(p.measurements[0].sigma_px, 0.5);
+  EXPECT_FALSE(p.measurements[1].sigma_px.has_value());
+  WriteGcpFile(file, dir / "again.txt");
+  const GcpFile again = ReadGcpFile(dir / "again.txt");
+  EXPECT_EQ(*again.points[0].sigma_xyz_m, *p.sigma_xyz_m);
+  EXPECT_EQ(again.points[0].measurements[0].sigma_px, 0.5);
+  EXPECT_FALSE(again.points[0].measurements[1].sigma_px.has_value());
+}
 
 // Files as spreadsheets and old tools write them: a UTF-8 byte-order mark,
 // CR-only or CR LF line endings, numbers with a leading '+'.

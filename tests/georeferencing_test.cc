@@ -457,5 +457,40 @@ TEST(Georeferencing, TheResultDoesNotDependOnTheStart) {
   EXPECT_LT(worst, 1e-4);
 }
 
+
+// The stochastic model stated in the control files: sigma_px on every mark
+// line is --mark-sigma-px for those marks, and sigma_x/y/z equal on both
+// horizontal axes are sigma_h / sigma_v (a projected grid is conformal).
+TEST(Georeferencing, SigmasInTheControlFileWeighTheirObservations) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(81), {});
+  GeoreferenceOptions by_option = MatchingSigmas();
+  by_option.bundle.mark_sigma_px = 0.5;
+  SparseModel a = ArbitraryFrame(scene.tie_model, 81);
+  const GeoreferenceReport ra = GeoreferenceAndAdjust(&a, scene.gps, &scene.control, &scene.checks, by_option);
+
+  GcpFile control = scene.control, checks = scene.checks;
+  for (GcpFile* f : {&control, &checks}) {
+    for (GroundPoint& p : f->points) {
+      for (GcpMeasurement& m : p.measurements) m.sigma_px = 0.5;
+      p.sigma_xyz_m = Eigen::Vector3d(0.01, 0.01, 0.01);
+    }
+  }
+  SparseModel b = ArbitraryFrame(scene.tie_model, 81);
+  const GeoreferenceReport rb = GeoreferenceAndAdjust(&b, scene.gps, &control, &checks, MatchingSigmas());
+  SparseModel c = ArbitraryFrame(scene.tie_model, 81);
+  const GeoreferenceReport rc =
+      GeoreferenceAndAdjust(&c, scene.gps, &scene.control, &scene.checks, MatchingSigmas());  // 0.3 px marks
+  ASSERT_EQ(ra.check.size(), rb.check.size());
+  double same = 0.0, other = 0.0;
+  for (size_t k = 0; k < ra.check.size(); ++k) {
+    same = std::max(same, (ra.check[k].adjusted_crs - rb.check[k].adjusted_crs).norm());
+    other = std::max(other, (ra.check[k].adjusted_crs - rc.check[k].adjusted_crs).norm());
+  }
+  std::printf("file sigmas vs options: %.2e m; vs 0.3 px marks: %.2e m\n", same, other);
+  EXPECT_LT(same, 2e-5);
+  EXPECT_GT(other, 10 * same);
+  EXPECT_NEAR(ra.bundle.sigma0, rb.bundle.sigma0, 1e-4);
+}
+
 }  // namespace
 }  // namespace aerotri

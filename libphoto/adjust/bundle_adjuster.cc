@@ -670,10 +670,11 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     for (size_t p = 0; p < model->points.size(); ++p) {
       Point& point = model->points[p];
       if (!point_used[p] || point.role != PointRole::kControl || !point.prior) continue;
-      problem.AddResidualBlock(
-          new PositionPriorCost(point.prior->position, point.prior->sigma_h_m,
-                                point.prior->sigma_v_m),
-          nullptr, point.position.data());
+      const PositionPrior& prior = *point.prior;
+      problem.AddResidualBlock(prior.covariance ? new PositionPriorCost(prior.position, *prior.covariance)
+                                                : new PositionPriorCost(prior.position, prior.sigma_h_m,
+                                                                        prior.sigma_v_m),
+                               nullptr, point.position.data());
       ++result.num_gcp;
     }
   }

@@ -329,11 +329,11 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
 
   // 1. Surveyed points in WGS84.
   std::vector<SurveyedPoint> surveyed;
-  std::optional<Crs> control_crs;
+  std::optional<Crs> control_crs, check_crs;
   for (const GcpFile* file : {control, checks}) {
     if (!file) continue;
     const Crs crs = Crs::FromString(file->crs);
-    if (file == control) control_crs = crs;
+    (file == control ? control_crs : check_crs) = crs;
     for (const GroundPoint& point : file->points) {
       SurveyedPoint s;
       s.source = &point;
@@ -422,6 +422,15 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     prior.position = frame.EnuFromGeodetic(s.geodetic);
     prior.sigma_h_m = s.source->sigma_h_m.value_or(options.gcp_sigma_h_m);
     prior.sigma_v_m = s.source->sigma_v_m.value_or(options.gcp_sigma_v_m);
+    if (s.source->sigma_xyz_m) {
+      // Sigmas on the CRS's axes, turned onto the adjustment's: Σ = J⁻¹ D J⁻ᵀ.
+      const Crs& crs = s.role == PointRole::kControl ? *control_crs : *check_crs;
+      const Eigen::Matrix3d j_inv = CrsFromEnuJacobian(frame, crs, prior.position).inverse();
+      const Eigen::Vector3d& sigma = *s.source->sigma_xyz_m;
+      prior.covariance = j_inv * sigma.cwiseAbs2().asDiagonal() * j_inv.transpose();
+      prior.sigma_h_m = std::max(sigma.x(), sigma.y());
+      prior.sigma_v_m = sigma.z();
+    }
     point.prior = prior;
     s.point_index = static_cast<int>(model->points.size());
     model->points.push_back(point);
@@ -439,6 +448,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       obs.image = it->second;
       obs.point = s.point_index;
       obs.xy = m.xy_px;
+      obs.sigma_px = m.sigma_px.value_or(0.0);
       model->observations.push_back(obs);
     }
   }

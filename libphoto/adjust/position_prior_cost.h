@@ -9,6 +9,7 @@
 
 #include <ceres/sized_cost_function.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 namespace aerotri {
@@ -18,23 +19,27 @@ class PositionPriorCost final : public ceres::SizedCostFunction<3, 3> {
   PositionPriorCost(const Eigen::Vector3d& prior, double sigma_h_m,
                     double sigma_v_m)
       : prior_(prior),
-        inv_sigma_(1.0 / sigma_h_m, 1.0 / sigma_h_m, 1.0 / sigma_v_m) {}
+        sqrt_information_(Eigen::Vector3d(1.0 / sigma_h_m, 1.0 / sigma_h_m, 1.0 / sigma_v_m).asDiagonal()) {}
+  // With a full covariance Σ = L Lᵀ: r = L⁻¹ (X − X0), Jacobian L⁻¹.
+  PositionPriorCost(const Eigen::Vector3d& prior, const Eigen::Matrix3d& covariance)
+      : prior_(prior),
+        sqrt_information_(covariance.llt().matrixL().solve(Eigen::Matrix3d::Identity())) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    for (int i = 0; i < 3; ++i) {
-      residuals[i] = (parameters[0][i] - prior_[i]) * inv_sigma_[i];
-    }
+    const Eigen::Vector3d d = Eigen::Map<const Eigen::Vector3d>(parameters[0]) - prior_;
+    Eigen::Map<Eigen::Vector3d> r(residuals);
+    r = sqrt_information_ * d;
     if (jacobians != nullptr && jacobians[0] != nullptr) {
       Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> j(jacobians[0]);
-      j = inv_sigma_.asDiagonal();
+      j = sqrt_information_;
     }
     return true;
   }
 
  private:
   Eigen::Vector3d prior_;
-  Eigen::Vector3d inv_sigma_;
+  Eigen::Matrix3d sqrt_information_;
 };
 
 // GPS prior on a camera centre C with a constant offset o shared by all

@@ -52,6 +52,10 @@ struct PositionPrior {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   double sigma_h_m = 1.0;
   double sigma_v_m = 1.0;
+  // A full covariance (adjustment frame, m²), when the survey states its
+  // sigmas on other axes (a projected CRS's x / y / z); sigma_h_m and
+  // sigma_v_m then summarise it (largest horizontal, vertical).
+  std::optional<Eigen::Matrix3d> covariance;
 };
 
 enum class PointRole {

@@ -300,6 +300,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
         const auto it = index_of_name.find(m.image);
         if (it == index_of_name.end()) continue;
         m.xy_px = (m.xy_px.array() + 0.5) / ingest.scale[it->second] - 0.5;
+        if (m.sigma_px) *m.sigma_px /= ingest.scale[it->second];
       }
     }
     return file;
