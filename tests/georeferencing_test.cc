@@ -492,5 +492,86 @@ TEST(Georeferencing, SigmasInTheControlFileWeighTheirObservations) {
   EXPECT_NEAR(ra.bundle.sigma0, rb.bundle.sigma0, 1e-4);
 }
 
+
+// Leave-one-out is N separate adjustments: point k's figure is the check
+// residual of an adjustment whose control lacks k.
+TEST(Georeferencing, LeaveOneOutEqualsSeparateAdjustments) {
+  SyntheticSurveyOptions so = SurveyOptions(91);
+  so.num_tie_points = 700;
+  so.num_control_points = 6;
+  const SyntheticGeoref scene = MakeSyntheticGeoref(so, {});
+  GeoreferenceOptions options = Options();
+  options.leave_one_out = true;
+  SparseModel model = ArbitraryFrame(scene.tie_model, 91);
+  const SparseModel start = model;
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, options);
+  const LeaveOneOut& loo = r.leave_one_out;
+  ASSERT_TRUE(loo.computed) << loo.note;
+  ASSERT_EQ(loo.points.size(), scene.control.points.size());
+  EXPECT_EQ(loo.adjustments, 6);
+  EXPECT_EQ(loo.stats.count, 6);
+  // Withheld, a control point is farther from its survey than adjusted.
+  EXPECT_GT(loo.stats.rmse_3d_m, r.control_stats.rmse_3d_m);
+  EXPECT_LT(loo.stats.rmse_3d_m, 0.1);
+  for (const size_t k : {size_t{0}, scene.control.points.size() - 1}) {
+    GcpFile without = scene.control, alone = scene.control;
+    without.points.erase(without.points.begin() + static_cast<long>(k));
+    alone.points = {scene.control.points[k]};
+    SparseModel copy = start;
+    options.leave_one_out = false;
+    const GeoreferenceReport separate = GeoreferenceAndAdjust(&copy, scene.gps, &without, &alone, options);
+    ASSERT_EQ(separate.check.size(), 1u);
+    EXPECT_EQ(loo.points[k].name, scene.control.points[k].name);
+    EXPECT_LT((loo.points[k].d_m - separate.check[0].d_m).cwiseAbs().maxCoeff(), 1e-4);
+  }
+  // Too few control points to withhold one: said, not faked.
+  GcpFile three = scene.control;
+  three.points.resize(3);
+  options.leave_one_out = true;
+  SparseModel again = start;
+  const GeoreferenceReport few = GeoreferenceAndAdjust(&again, scene.gps, &three, &scene.checks, options);
+  EXPECT_FALSE(few.leave_one_out.computed);
+  EXPECT_NE(few.leave_one_out.note.find("4 or more control points"), std::string::npos);
+}
+
+
+// The exterior orientation as reported (centre in the CRS, omega / phi /
+// kappa of R = Rx Ry Rz from the photo frame to the grid) re-projects the
+// surveyed check points onto their measured marks: an end-to-end check of
+// the stated convention, independent of the adjustment's own frames.
+TEST(Georeferencing, ExteriorOrientationReprojectsTheCheckPoints) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(33), {});
+  SparseModel model = ArbitraryFrame(scene.tie_model, 33);
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, Options());
+  auto rot = [](int axis, double deg) {
+    return Eigen::AngleAxisd(deg * M_PI / 180.0, Eigen::Vector3d::Unit(axis)).toRotationMatrix();
+  };
+  double sum = 0.0;
+  int n = 0;
+  for (const GroundPoint& p : scene.checks.points) {
+    for (const GcpMeasurement& m : p.measurements) {
+      const CameraResult* c = nullptr;
+      int image = -1;
+      for (const CameraResult& x : r.cameras) {
+        if (x.name == m.image) c = &x;
+      }
+      for (size_t i = 0; i < model.images.size(); ++i) {
+        if (model.images[i].name == m.image) image = static_cast<int>(i);
+      }
+      ASSERT_TRUE(c && image >= 0);
+      const Eigen::Matrix3d grid_from_photo = rot(0, c->opk_deg.x()) * rot(1, c->opk_deg.y()) * rot(2, c->opk_deg.z());
+      const Eigen::Vector3d photo = grid_from_photo.transpose() * (p.xyz - c->position_crs);
+      const Eigen::Vector3d opencv(photo.x(), -photo.y(), -photo.z());
+      const Eigen::Vector2d xy = model.cameras[model.images[image].camera].ImageFromCamera(opencv);
+      sum += (xy - m.xy_px).squaredNorm();
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 10);
+  const double rms = std::sqrt(sum / n);
+  std::printf("check marks re-projected through the reported EO: %.3f px RMS over %d\n", rms, n);
+  EXPECT_LT(rms, 1.0);
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -144,8 +144,10 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   WriteColmapText(model, output / "model");
   nlohmann::json json = GeoreferenceReportJson(report, model);
   WriteTextFileAtomically(output / "report.json", json.dump(2) + "\n");
+  WriteTextFileAtomically(output / "exterior_orientation.csv", ExteriorOrientationCsv(report));
   ctx.Info(report.bundle.BriefReport());
-  ctx.Info("wrote " + (output / "model").string() + " and " + (output / "report.json").string());
+  ctx.Info("wrote " + (output / "model").string() + ", " + (output / "report.json").string() + " and " +
+           (output / "exterior_orientation.csv").string());
 
   // An RMSE over no points is not a figure: "nan", never a reassuring 0.0000.
   const auto rmse = [](int count, double value) { return count > 0 ? value : std::nan(""); };

@@ -30,10 +30,17 @@ struct AdjustmentPolicyArgs {
   double tie_sigma_px = 1.0;   // image sigma of tie points
   double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
   bool checkpoints_in_bundle = false;
+  std::string leave_one_out = "off";  // on, off
   double function_tolerance = SurveyBundleOptions().function_tolerance;
   double parameter_tolerance = SurveyBundleOptions().parameter_tolerance;
   double gradient_tolerance = SurveyBundleOptions().gradient_tolerance;
 };
+// run's: a survey's report carries leave-one-out figures unless asked not to.
+inline AdjustmentPolicyArgs SurveyRunPolicy() {
+  AdjustmentPolicyArgs p;
+  p.leave_one_out = "on";
+  return p;
+}
 void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* args);
 // Into the georeferencing options (the loss is left as it is).
 void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& args, GeoreferenceOptions* options);
@@ -121,7 +128,7 @@ int RunSimulate(const SimulateArgs& args, ToolContext& ctx);
 struct RunArgs {
   std::string images_dir;
   std::string output;
-  AdjustmentPolicyArgs policy;  // of the georeferenced adjustment
+  AdjustmentPolicyArgs policy = SurveyRunPolicy();  // of the georeferenced adjustment
   bool keep_going = false;
   bool force = false;
   int threads = 0;

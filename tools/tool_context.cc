@@ -85,6 +85,11 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
   cmd->add_flag("--checkpoints-in-bundle", a->checkpoints_in_bundle,
                 "Carry check points as free points inside the bundle (no prior), as classic aerial "
                 "triangulation does; default: independent, triangulated afterwards with the cameras held");
+  cmd->add_option("--leave-one-out", a->leave_one_out,
+                  "on: adjust once more per control point with it withheld, and report its residual as a "
+                  "check point's (report.json leave_one_out; needs 4 or more control points); off")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   cmd->add_option("--function-tolerance", a->function_tolerance,
                   "Solver stops when the cost changes by less than this fraction")
       ->check(CLI::PositiveNumber)
@@ -108,6 +113,7 @@ void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o
   o->bundle.observation_sigma_px = a.tie_sigma_px;
   o->bundle.mark_sigma_px = a.mark_sigma_px;
   o->bundle.check_points_in_bundle = a.checkpoints_in_bundle;
+  o->leave_one_out = a.leave_one_out == "on";
   o->bundle.function_tolerance = a.function_tolerance;
   o->bundle.parameter_tolerance = a.parameter_tolerance;
   o->bundle.gradient_tolerance = a.gradient_tolerance;

@@ -2,6 +2,7 @@
 #include "libphoto/adjust/georeferencing.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <unordered_map>
@@ -326,6 +327,9 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   model->Validate();
   GeoreferenceReport report;
   ReportProgress(options.progress, 0.0, "reading control");
+  // The start of every leave-one-out adjustment.
+  std::optional<SparseModel> start;
+  if (options.leave_one_out) start = *model;
 
   // 1. Surveyed points in WGS84.
   std::vector<SurveyedPoint> surveyed;
@@ -877,6 +881,37 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
   ApplyQualityGates(*model, options.gates, &report);
+  if (options.leave_one_out) {
+    LeaveOneOut& loo = report.leave_one_out;
+    const auto loo_start = std::chrono::steady_clock::now();
+    const int n = control ? static_cast<int>(control->points.size()) : 0;
+    if (n < 4) {
+      loo.note = "needs 4 or more control points (have " + std::to_string(n) + "): 3 must hold the datum";
+    } else {
+      GeoreferenceOptions once = options;
+      once.leave_one_out = false;
+      once.progress = nullptr;
+      std::vector<Eigen::Vector3d> d;
+      for (int k = 0; k < n; ++k) {
+        ReportProgress(options.progress, 0.9 + 0.1 * k / n,
+                       "leave-one-out: without " + control->points[k].name);
+        GcpFile without = *control;
+        without.points.erase(without.points.begin() + k);
+        GcpFile alone = *control;
+        alone.points = {control->points[k]};
+        SparseModel copy = *start;
+        const GeoreferenceReport r = GeoreferenceAndAdjust(&copy, gps, &without, &alone, once);
+        GroundPointResult p = r.check.at(0);
+        p.role = PointRole::kControl;
+        if (p.solved) d.push_back(p.d_m);
+        loo.points.push_back(p);
+        ++loo.adjustments;
+      }
+      loo.stats = AccuracyStats::FromResiduals(d);
+      loo.computed = true;
+    }
+    loo.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - loo_start).count();
+  }
   ReportProgress(options.progress, 1.0, "georeferenced");
   return report;
 }

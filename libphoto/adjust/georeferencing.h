@@ -76,6 +76,11 @@ struct GeoreferenceOptions {
   // bundle.refine_intrinsics as given, a weak focal length flagged.
   bool auto_refine = true;
   double weak_focal_rel = 0.01;
+  // After the adjustment, each control point in turn is withheld: the block
+  // adjusted again without it (same options, same start) and the point
+  // triangulated as an independent check (GeoreferenceReport::
+  // leave_one_out). Needs 4 or more control points (3 still hold the datum).
+  bool leave_one_out = false;
   BundleOptions bundle = SurveyBundleOptions();
   ProgressCallback progress;
 };
@@ -142,6 +147,18 @@ struct GpsVersusControl {
   std::vector<std::string> rejected;  // images whose GPS left the adjustment
 };
 
+// Leave-one-out over the control points: each one's residual when it is
+// withheld from its own adjustment (an honest error figure beside the
+// control residuals, which the adjustment pulls towards zero).
+struct LeaveOneOut {
+  bool computed = false;
+  std::string note;  // why not, when !computed
+  std::vector<GroundPointResult> points;  // role kControl; d_m as a check point
+  AccuracyStats stats;
+  int adjustments = 0;
+  double time_s = 0.0;
+};
+
 struct GeoreferenceReport {
   std::string crs;       // as given or chosen
   std::string crs_name;  // PROJ's name
@@ -170,6 +187,7 @@ struct GeoreferenceReport {
   // two-sided normal); precision_note says why the statistics are missing.
   std::vector<MarkResult> marks;
   double w_critical = 3.29;
+  LeaveOneOut leave_one_out;  // when GeoreferenceOptions::leave_one_out
   std::string precision_note;
   // Warnings and errors with stable codes (findings.h); SurveyStatus() of
   // them is the survey's status.

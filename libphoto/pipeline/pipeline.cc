@@ -346,6 +346,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
       csv << "\n";
     }
     WriteTextFileAtomically(o.workspace / "cameras.csv", csv.str());
+    WriteTextFileAtomically(o.workspace / "exterior_orientation.csv", ExteriorOrientationCsv(georef));
   } else {
     Log(o, "warning: no GPS and no control points: the survey is not georeferenced "
            "(arbitrary frame and scale)");

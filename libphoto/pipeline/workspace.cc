@@ -151,6 +151,7 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"tie_sigma_px", g.bundle.observation_sigma_px},
           {"mark_sigma_px", g.bundle.mark_sigma_px},
           {"checkpoints_in_bundle", g.bundle.check_points_in_bundle},
+          {"leave_one_out", g.leave_one_out},
           {"function_tolerance", g.bundle.function_tolerance},
           {"parameter_tolerance", g.bundle.parameter_tolerance},
           {"gradient_tolerance", g.bundle.gradient_tolerance}};

@@ -96,22 +96,96 @@ std::string PointTable(const json& group, const char* title) {
   h << "<h3>" << title << " (" << group.value("count", 0) << ")</h3>";
   if (!group.contains("points") || group["points"].empty()) return h.str() + "<p>None.</p>";
   h << "<table><tr><th>name</th><th>images</th><th>dx (m)</th><th>dy (m)</th><th>dz (m)</th><th>3D (m)</th>"
-       "<th>reprojection RMS (px)</th></tr>";
+       "<th>&sigma;x, &sigma;y, &sigma;z (m)</th><th>reprojection RMS (px)</th></tr>";
   for (const auto& p : group["points"]) {
     h << "<tr><td>" << Escape(Text(p, "name", "")) << "</td><td>" << p.value("images", 0) << "</td>";
     if (p.value("solved", false)) {
       const double dx = Get(p, "dx_m"), dy = Get(p, "dy_m"), dz = Get(p, "dz_m");
       h << "<td>" << Num(dx) << "</td><td>" << Num(dy) << "</td><td>" << Num(dz) << "</td><td>"
-        << Num(std::sqrt(dx * dx + dy * dy + dz * dz)) << "</td><td>" << Num(Get(p, "reprojection_rms_px"), 2)
-        << "</td>";
+        << Num(std::sqrt(dx * dx + dy * dy + dz * dz)) << "</td><td>"
+        << (p.contains("sigma_x_m") ? Num(Get(p, "sigma_x_m")) + ", " + Num(Get(p, "sigma_y_m")) + ", " +
+                                          Num(Get(p, "sigma_z_m"))
+                                    : std::string("–"))
+        << "</td><td>" << Num(Get(p, "reprojection_rms_px"), 2) << "</td>";
     } else {
-      h << "<td colspan='5'>not solved: " << Escape(Text(p, "why_not", "")) << "</td>";
+      h << "<td colspan='6'>not solved: " << Escape(Text(p, "why_not", "")) << "</td>";
     }
     h << "</tr>";
   }
   h << "<tr class='total'><td>RMSE</td><td></td><td>" << Num(Get(group, "rmse_x_m")) << "</td><td>"
     << Num(Get(group, "rmse_y_m")) << "</td><td>" << Num(Get(group, "rmse_z_m")) << "</td><td>"
-    << Num(Get(group, "rmse_3d_m")) << "</td><td></td></tr></table>";
+    << Num(Get(group, "rmse_3d_m")) << "</td><td></td><td></td></tr></table>";
+  return h.str();
+}
+
+// σ0, redundancy, the χ² test, the precision of the exterior orientation
+// and the data snooping of the marks.
+std::string AdjustmentStatistics(const json& r) {
+  const json& adj = r.value("adjustment", json::object());
+  std::ostringstream h;
+  h << "<h2>Adjustment statistics</h2><table>"
+    << "<tr><td>&sigma;<sub>0</sub> (a-posteriori sigma of unit weight)</td><td>" << Num(Get(adj, "sigma0", NAN), 4)
+    << "</td></tr><tr><td>redundancy</td><td>" << adj.value("redundancy", 0) << "</td></tr>";
+  if (adj.contains("chi2_test")) {
+    const json& c = adj["chi2_test"];
+    h << "<tr><td>&chi;<sup>2</sup> test of &sigma;<sub>0</sub> against the stated sigmas (z)</td><td>"
+      << Num(Get(c, "z", NAN), 2) << (c.value("consistent", false) ? " (consistent)" : " (inconsistent)")
+      << "</td></tr>";
+  }
+  h << "<tr><td>termination</td><td>" << Escape(Text(adj, "termination", "")) << "</td></tr></table>";
+  const json& p = adj.value("precision", json::object());
+  if (!p.value("computed", false)) {
+    h << "<p>Posterior precision not computed: " << Escape(Text(p, "note", "not asked for")) << "</p>";
+    return h.str();
+  }
+  // Exterior orientation precision: median and largest over the cameras.
+  std::vector<std::vector<double>> v(6);
+  for (const auto& c : r.value("cameras", json::array())) {
+    if (!c.contains("sigma_position_m")) continue;
+    for (int k = 0; k < 3; ++k) {
+      v[k].push_back(c["sigma_position_m"][k].get<double>());
+      v[3 + k].push_back(c["sigma_omega_phi_kappa_deg"][k].get<double>());
+    }
+  }
+  static const char* kNames[] = {"&sigma;X (m)", "&sigma;Y (m)", "&sigma;Z (m)",
+                                 "&sigma;&omega; (deg)", "&sigma;&phi; (deg)", "&sigma;&kappa; (deg)"};
+  h << "<h3>Exterior orientation precision (" << v[0].size()
+    << " cameras; a-posteriori, full list in exterior_orientation.csv)</h3><table><tr><th></th>";
+  for (const char* n : kNames) h << "<th>" << n << "</th>";
+  h << "</tr>";
+  for (const bool largest : {false, true}) {
+    h << "<tr><td>" << (largest ? "largest" : "median") << "</td>";
+    for (auto& x : v) {
+      if (x.empty()) {
+        h << "<td>–</td>";
+        continue;
+      }
+      std::sort(x.begin(), x.end());
+      h << "<td>" << Num(largest ? x.back() : x[x.size() / 2], 4) << "</td>";
+    }
+    h << "</tr>";
+  }
+  h << "</table><p>" << Escape(Text(r.value("exterior_orientation", json::object()), "angles", "")) << ". "
+    << Escape(Text(p, "check_points", "")) << ".</p>";
+  // Data snooping.
+  const json& ds = adj.value("data_snooping", json::object());
+  const json& marks = ds.value("marks", json::array());
+  double max_w = 0.0;
+  std::string worst;
+  for (const auto& m : marks) {
+    for (int a = 0; a < 2; ++a) {
+      const double w = std::abs(m["w"][a].get<double>());
+      if (w > max_w) {
+        max_w = w;
+        worst = Text(m, "point", "") + " on " + Text(m, "image", "");
+      }
+    }
+  }
+  h << "<h3>Data snooping of the target marks</h3><p>Baarda's w-test on " << marks.size()
+    << " marks, critical value " << Num(Get(ds, "critical_value", 3.29), 2) << " (&alpha; 0.1 %): largest |w| "
+    << Num(max_w, 2) << (worst.empty() ? std::string() : " (" + Escape(worst) + ")")
+    << (max_w > Get(ds, "critical_value", 3.29) ? " &mdash; <b>rejected: measure this mark again</b>" : " &mdash; none rejected")
+    << ".</p>";
   return h.str();
 }
 
@@ -316,6 +390,11 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   }
   if (r.contains("check_points")) h << PointTable(r["check_points"], "Check points (never used in the adjustment)");
   if (r.contains("control_points")) h << PointTable(r["control_points"], "Control points");
+  if (r.contains("leave_one_out") && r["leave_one_out"].contains("points")) {
+    h << PointTable(r["leave_one_out"], "Control points, each withheld from its own adjustment (leave-one-out)");
+  } else if (r.contains("leave_one_out")) {
+    h << "<p>Leave-one-out: " << Escape(Text(r["leave_one_out"], "note", "")) << ".</p>";
+  }
   if (r.contains("dsm") && r["dsm"].contains("check_points")) {
     const auto& d = r["dsm"]["check_points"];
     h << "<h3>DSM at the check points</h3><table><tr><th>name</th><th>DSM − surveyed z (m)</th></tr>";
@@ -326,6 +405,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     h << "<tr class='total'><td>RMSE (" << d.value("count", 0) << " points)</td><td>" << Num(Get(d, "rmse_z_m"))
       << "</td></tr></table>";
   }
+  h << AdjustmentStatistics(r);
   h << "<h2>Survey map and residual vectors</h2>" << SurveyMap(r);
 
   std::vector<std::string> names;

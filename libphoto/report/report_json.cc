@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/report/report_json.h"
 
+#include <iomanip>
+#include <sstream>
+
 namespace aerotri {
 namespace {
 
@@ -99,6 +102,35 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
   return j;
 }
 
+std::string ExteriorOrientationCsv(const GeoreferenceReport& r) {
+  std::ostringstream out;
+  out << "# exterior orientation, aerotri\n"
+      << "# crs: " << r.crs << " (" << r.crs_name << ")\n"
+      << "# x, y, z: camera centre in that CRS" << (r.residuals_in_crs_units ? "" : " (lon, lat, ellipsoidal h)")
+      << "\n"
+      << "# omega, phi, kappa (deg): R = Rx(omega) Ry(phi) Rz(kappa) turns the photo frame (x right, y up the "
+         "image, z out of the lens towards the viewer) into the grid axes (easting, northing, up); a nadir "
+         "photo with its top to the north has 0, 0, 0\n"
+      << "# sigma_*: posterior standard deviations (a-priori covariance times sigma0^2 = "
+      << r.bundle.precision.variance_factor << "); empty when not computed\n";
+  out << "name,x,y,z,omega_deg,phi_deg,kappa_deg,sigma_x_m,sigma_y_m,sigma_z_m,sigma_omega_deg,sigma_phi_deg,"
+         "sigma_kappa_deg\n";
+  out << std::setprecision(12);
+  for (const CameraResult& c : r.cameras) {
+    out << c.name << "," << c.position_crs.x() << "," << c.position_crs.y() << "," << c.position_crs.z()
+        << std::setprecision(9) << "," << c.opk_deg.x() << "," << c.opk_deg.y() << "," << c.opk_deg.z();
+    if (c.has_precision) {
+      out << std::setprecision(4);
+      for (int k = 0; k < 3; ++k) out << "," << c.sigma_position_m[k];
+      for (int k = 0; k < 3; ++k) out << "," << c.sigma_opk_deg[k];
+    } else {
+      out << ",,,,,,";
+    }
+    out << std::setprecision(12) << "\n";
+  }
+  return out.str();
+}
+
 nlohmann::json FindingsJson(const std::vector<Finding>& findings, Severity severity) {
   nlohmann::json out = nlohmann::json::array();
   for (const Finding& f : findings) {
@@ -156,6 +188,19 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                  "northing, up); a nadir photo with its top to the north has 0, 0, 0"},
       {"sigmas", "posterior standard deviations (scaled by sigma0^2), position on the grid axes"}};
   j["adjustment"] = BundleSummaryJson(r.bundle, model);
+  {
+    const LeaveOneOut& loo = r.leave_one_out;
+    if (loo.computed) {
+      nlohmann::json lj = PointsJson(loo.points, loo.stats, r.residuals_in_crs_units);
+      lj["note"] = "each control point withheld from its own adjustment and triangulated as a check point: "
+                   "residuals the adjustment did not pull towards zero";
+      lj["adjustments"] = loo.adjustments;
+      lj["time_s"] = loo.time_s;
+      j["leave_one_out"] = lj;
+    } else {
+      j["leave_one_out"] = {{"computed", false}, {"note", loo.note.empty() ? "not asked for" : loo.note}};
+    }
+  }
   {
     const BundlePrecision& p = r.bundle.precision;
     nlohmann::json pj;
