@@ -4,6 +4,7 @@
 #include <proj.h>
 
 #include <GeographicLib/UTMUPS.hpp>
+#include <cctype>
 #include <cmath>
 #include <mutex>
 
@@ -19,7 +20,11 @@ struct Crs::Impl {
   PJ* crs = nullptr;
   PJ* forward = nullptr;  // EPSG:4979 (lon, lat, h) -> crs (normalised)
   bool geographic = false;
+  bool geocentric = false;
   bool vertical = false;
+  bool local = false;
+  double unit_m = 1.0;
+  Eigen::Vector3d local_origin = Eigen::Vector3d::Zero();
   std::mutex mutex;
 
   ~Impl() {
@@ -80,6 +85,12 @@ Crs Crs::FromString(const std::string& definition) {
   impl->ctx = proj_context_create();
   proj_context_set_enable_network(impl->ctx, 0);
   proj_log_level(impl->ctx, PJ_LOG_NONE);
+  std::string upper = definition;
+  for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (upper == "LOCAL") {
+    impl->local = true;
+    return Crs(impl);
+  }
   std::string text = definition;
   if (text.rfind("+proj", 0) == 0 && text.find("+type=crs") == std::string::npos) {
     text += " +type=crs";
@@ -96,7 +107,9 @@ Crs Crs::FromString(const std::string& definition) {
       impl->geographic = true;
       break;
     case PJ_TYPE_PROJECTED_CRS:
+      break;
     case PJ_TYPE_GEOCENTRIC_CRS:
+      impl->geocentric = true;
       break;
     case PJ_TYPE_COMPOUND_CRS:
       impl->vertical = true;
@@ -111,6 +124,18 @@ Crs Crs::FromString(const std::string& definition) {
       break;
     case PJ_TYPE_BOUND_CRS:
       break;
+    case PJ_TYPE_ENGINEERING_CRS: {
+      // Its length unit, from the first axis.
+      impl->local = true;
+      PJ* cs = proj_crs_get_coordinate_system(impl->ctx, impl->crs);
+      double factor = 1.0;
+      if (cs && proj_cs_get_axis_count(impl->ctx, cs) >= 1) {
+        proj_cs_get_axis_info(impl->ctx, cs, 0, nullptr, nullptr, nullptr, &factor, nullptr, nullptr, nullptr);
+      }
+      if (cs) proj_destroy(cs);
+      impl->unit_m = factor > 0.0 ? factor : 1.0;
+      return Crs(impl);
+    }
     default:
       throw CrsError("'" + definition + "' is not a coordinate reference system PROJ can "
                      "transform to (it is a " + std::string(proj_get_type(impl->crs) ==
@@ -145,26 +170,54 @@ Crs Crs::UtmFor(const Geodetic& g) {
 const std::string& Crs::definition() const { return impl_->definition; }
 
 std::string Crs::Name() const {
+  if (impl_->local && !impl_->crs) return "local engineering frame (x east, y north, z up; metres)";
   const char* name = proj_get_name(impl_->crs);
   return name ? name : impl_->definition;
 }
 
+namespace {
+// WKT of "LOCAL": a 3D Cartesian engineering CRS in metres.
+const char* kLocalWkt2 =
+    "ENGCRS[\"Local engineering frame\",EDATUM[\"Unknown engineering datum\"],CS[Cartesian,3],"
+    "AXIS[\"x\",east,ORDER[1],LENGTHUNIT[\"metre\",1]],AXIS[\"y\",north,ORDER[2],LENGTHUNIT[\"metre\",1]],"
+    "AXIS[\"z\",up,ORDER[3],LENGTHUNIT[\"metre\",1]]]";
+const char* kLocalWkt1 =
+    "LOCAL_CS[\"Local engineering frame\",LOCAL_DATUM[\"Unknown engineering datum\",32767],UNIT[\"metre\",1],"
+    "AXIS[\"x\",EAST],AXIS[\"y\",NORTH]]";  // WKT1 allows two axes: z is the height, in metres too
+}  // namespace
+
 std::string Crs::Wkt() const {
+  if (impl_->local && !impl_->crs) return kLocalWkt2;
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const char* wkt = proj_as_wkt(impl_->ctx, impl_->crs, PJ_WKT2_2019, nullptr);
   return wkt ? wkt : "";
 }
 
 std::string Crs::WktV1() const {
+  if (impl_->local && !impl_->crs) return kLocalWkt1;
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const char* wkt = proj_as_wkt(impl_->ctx, impl_->crs, PJ_WKT1_GDAL, nullptr);
   return wkt ? wkt : "";
 }
 
 bool Crs::IsGeographic() const { return impl_->geographic; }
+bool Crs::IsGeocentric() const { return impl_->geocentric; }
+bool Crs::IsLocal() const { return impl_->local; }
+double Crs::LocalUnitMetres() const { return impl_->unit_m; }
+
+Crs Crs::LocalAt(const Eigen::Vector3d& origin) const {
+  if (!impl_->local) throw CrsError("CRS '" + impl_->definition + "' is not a local frame");
+  Crs moved = FromString(impl_->definition);
+  moved.impl_->local_origin = origin;
+  return moved;
+}
 bool Crs::HasVerticalDatum() const { return impl_->vertical; }
 
 Eigen::Vector3d Crs::FromGeodetic(const Geodetic& g) const {
+  if (impl_->local) {
+    static const LocalFrame stand_in(LocalGeodeticOrigin());
+    return stand_in.EnuFromGeodetic(g) / impl_->unit_m + impl_->local_origin;
+  }
   std::lock_guard<std::mutex> lock(impl_->mutex);
   PJ_COORD in = proj_coord(g.lon_deg, g.lat_deg, g.h_m, 0.0);
   proj_errno_reset(impl_->forward);
@@ -180,6 +233,10 @@ Eigen::Vector3d Crs::FromGeodetic(const Geodetic& g) const {
 }
 
 Geodetic Crs::ToGeodetic(const Eigen::Vector3d& xyz) const {
+  if (impl_->local) {
+    static const LocalFrame stand_in(LocalGeodeticOrigin());
+    return stand_in.GeodeticFromEnu((xyz - impl_->local_origin) * impl_->unit_m);
+  }
   std::lock_guard<std::mutex> lock(impl_->mutex);
   PJ_COORD in = proj_coord(xyz.x(), xyz.y(), xyz.z(), 0.0);
   proj_errno_reset(impl_->forward);

@@ -24,7 +24,9 @@ namespace aerotri {
 
 class Crs {
  public:
-  // Throws CrsError naming the definition and what PROJ said.
+  // Throws CrsError naming the definition and what PROJ said. "LOCAL" (any
+  // case) or an engineering CRS's WKT (ENGCRS / LOCAL_CS) is a local
+  // Cartesian frame: see IsLocal().
   static Crs FromString(const std::string& definition);
   // The WGS84 UTM zone of a point (EPSG:326zz north, 327zz south), with
   // Norway's and Svalbard's exceptions as GeographicLib's UTMUPS defines them.
@@ -35,6 +37,19 @@ class Crs {
   std::string Wkt() const;    // WKT2:2019
   std::string WktV1() const;  // OGC WKT 1 (GDAL flavour), what LAS 1.4 readers expect
   bool IsGeographic() const;
+  bool IsGeocentric() const;  // ECEF X, Y, Z: no horizontal / vertical axes
+  // A local engineering frame: Cartesian x (east), y (north), z (up) in the
+  // file's length unit, with no geodetic meaning. It converts through an
+  // exact stand-in: the ENU frame tangent at LocalGeodeticOrigin(), on which
+  // (x, y, z) − origin() in metres lie, so an adjustment in that ENU frame
+  // is an adjustment in the file's own coordinates (no curvature, no
+  // projection). Geodetic positions (GPS) have no place in it.
+  bool IsLocal() const;
+  double LocalUnitMetres() const;  // metres per file unit
+  // The same local frame with its coordinates' origin moved to `origin`
+  // (file units): keeps the stand-in's coordinates small.
+  Crs LocalAt(const Eigen::Vector3d& origin) const;
+  static Geodetic LocalGeodeticOrigin() { return {0.0, 0.0, 0.0}; }
   // True for a compound CRS or one with a vertical axis (heights are not
   // ellipsoidal).
   bool HasVerticalDatum() const;

@@ -84,3 +84,41 @@ TEST(Crs, BadDefinitionsAreRefusedClearly) {
 
 }  // namespace
 }  // namespace aerotri
+
+namespace aerotri {
+namespace {
+
+// Local engineering frames: "LOCAL" and engineering CRS WKT (WKT2 ENGCRS, WKT1
+// LOCAL_CS) are Cartesian frames in their own unit, converted exactly through
+// the stand-in tangent plane (no curvature, no projection).
+TEST(Crs, LocalEngineeringFramesAreExactCartesian) {
+  const Crs local = Crs::FromString("local");
+  EXPECT_TRUE(local.IsLocal());
+  EXPECT_FALSE(local.IsGeographic());
+  EXPECT_DOUBLE_EQ(local.LocalUnitMetres(), 1.0);
+  const Crs at = local.LocalAt({1000.0, 2000.0, 100.0});
+  for (const Eigen::Vector3d& x : {Eigen::Vector3d(1000, 2000, 100), Eigen::Vector3d(1730.25, 1520.5, 161.75)}) {
+    const Eigen::Vector3d back = at.FromGeodetic(at.ToGeodetic(x));
+    EXPECT_LT((back - x).norm(), 1e-8);
+    // Distances are the file's: on the stand-in's tangent plane.
+    const LocalFrame frame(Crs::LocalGeodeticOrigin());
+    EXPECT_LT((frame.EnuFromGeodetic(at.ToGeodetic(x)) - (x - Eigen::Vector3d(1000, 2000, 100))).norm(), 1e-8);
+  }
+  // Its WKT is an engineering CRS that PROJ reads back as one.
+  EXPECT_TRUE(Crs::FromString(local.Wkt()).IsLocal());
+  EXPECT_TRUE(Crs::FromString(local.WktV1()).IsLocal());
+  const Crs feet = Crs::FromString(
+      "ENGCRS[\"site grid\",EDATUM[\"site\"],CS[Cartesian,3],"
+      "AXIS[\"x\",east,ORDER[1],LENGTHUNIT[\"US survey foot\",0.304800609601219]],"
+      "AXIS[\"y\",north,ORDER[2],LENGTHUNIT[\"US survey foot\",0.304800609601219]],"
+      "AXIS[\"z\",up,ORDER[3],LENGTHUNIT[\"US survey foot\",0.304800609601219]]]");
+  EXPECT_TRUE(feet.IsLocal());
+  EXPECT_NEAR(feet.LocalUnitMetres(), 0.304800609601219, 1e-15);
+  const Crs feet_at = feet.LocalAt(Eigen::Vector3d::Zero());
+  const LocalFrame frame(Crs::LocalGeodeticOrigin());
+  EXPECT_NEAR(frame.EnuFromGeodetic(feet_at.ToGeodetic({100.0, 0.0, 0.0})).x(), 30.4800609601219, 1e-8);
+  EXPECT_TRUE(Crs::FromString("EPSG:4978").IsGeocentric());
+}
+
+}  // namespace
+}  // namespace aerotri

@@ -573,5 +573,154 @@ TEST(Georeferencing, ExteriorOrientationReprojectsTheCheckPoints) {
   EXPECT_LT(rms, 1.0);
 }
 
+
+// A local engineering frame: the control file's own Cartesian coordinates,
+// no geodesy. The adjustment must be the least-squares solution in those
+// coordinates, which an independent dense Gauss–Newton (numeric Jacobian,
+// rotation vectors, the control file's coordinates minus their mean) finds
+// to 0.1 mm on a tiny block.
+TEST(Georeferencing, LocalFrameMatchesAnIndependentGaussNewton) {
+  SyntheticSurveyOptions so = SurveyOptions(101);
+  so.area_width_m = 60.0;
+  so.area_height_m = 40.0;
+  so.num_tie_points = 40;
+  so.num_control_points = 6;
+  so.num_check_points = 2;
+  const SyntheticGeoref scene = MakeSyntheticGeoref(so, {});
+  // The truth's ENU coordinates, shifted as a national grid treated as flat.
+  const Eigen::Vector3d shift(512345.0, 5123456.0, 250.0);
+  GcpFile control = scene.control, checks = scene.checks;
+  for (GcpFile* f : {&control, &checks}) {
+    f->crs = "LOCAL";
+    for (GroundPoint& p : f->points) {
+      for (const Point& t : scene.survey.truth.points) {
+        if (t.name == p.name) p.xyz = t.position + shift;
+      }
+    }
+  }
+  GeoreferenceOptions options = Options();
+  options.output_crs.clear();  // the control file's frame
+  options.bundle.loss = LossType::kNone;
+  options.bundle.outlier_threshold_px = 0.0;
+  options.bundle.observation_sigma_px = 0.3;
+  options.auto_refine = false;
+  options.bundle.refine_intrinsics = IntrinsicsRefinement::kNone;
+  SparseModel model = ArbitraryFrame(scene.tie_model, 101);
+  model.cameras = scene.survey.truth.cameras;  // known interior orientation
+  const std::map<std::string, GpsFix> no_gps;
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, no_gps, &control, &checks, options);
+  ASSERT_TRUE(r.local_origin.has_value());
+  EXPECT_EQ(r.crs, "LOCAL");
+  EXPECT_LT(r.check_stats.rmse_3d_m, 0.05);
+
+  // Independent dense Gauss–Newton from a perturbed copy of the solution.
+  struct Unknowns {
+    std::vector<Eigen::Matrix3d> r0;
+    std::vector<Eigen::Vector3d> omega, centre;
+    std::vector<Eigen::Vector3d> point;
+  };
+  std::vector<int> images, points;
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    if (model.images[i].registered) images.push_back(static_cast<int>(i));
+  }
+  std::vector<int> slot(model.points.size(), -1);
+  std::vector<Eigen::Vector3d> prior(model.points.size());
+  for (size_t p = 0; p < model.points.size(); ++p) {
+    const Point& pt = model.points[p];
+    if (pt.role == PointRole::kCheck) continue;
+    slot[p] = static_cast<int>(points.size());
+    points.push_back(static_cast<int>(p));
+    if (pt.role == PointRole::kControl) {
+      for (const GroundPoint& g : control.points) {
+        if (g.name == pt.name) prior[p] = g.xyz - *r.local_origin;  // the file's coordinates, shifted only
+      }
+    }
+  }
+  std::vector<int> image_slot(model.images.size(), -1);
+  for (size_t k = 0; k < images.size(); ++k) image_slot[images[k]] = static_cast<int>(k);
+  const int n = 6 * static_cast<int>(images.size()) + 3 * static_cast<int>(points.size());
+  auto residuals = [&](const Eigen::VectorXd& x) {
+    std::vector<double> out;
+    for (const Observation& obs : model.observations) {
+      if (image_slot[obs.image] < 0 || slot[obs.point] < 0) continue;
+      const int i = image_slot[obs.image];
+      const Eigen::Vector3d w = x.segment<3>(6 * i), c = x.segment<3>(6 * i + 3);
+      const Eigen::Matrix3d rot =
+          (w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity()) *
+          model.images[obs.image].pose.cam_from_world.toRotationMatrix();
+      const Eigen::Vector3d X = x.segment<3>(6 * static_cast<int>(images.size()) + 3 * slot[obs.point]);
+      const Eigen::Vector2d xy = model.cameras[model.images[obs.image].camera].ImageFromCamera(rot * (X - c));
+      const Eigen::Vector2d e = (xy - obs.xy) / 0.3;
+      out.push_back(e.x());
+      out.push_back(e.y());
+    }
+    for (int p : points) {
+      if (model.points[p].role != PointRole::kControl) continue;
+      const Eigen::Vector3d X = x.segment<3>(6 * static_cast<int>(images.size()) + 3 * slot[p]);
+      for (int a = 0; a < 3; ++a) out.push_back((X[a] - prior[p][a]) / 0.01);
+    }
+    return Eigen::Map<Eigen::VectorXd>(out.data(), static_cast<Eigen::Index>(out.size())).eval();
+  };
+  Eigen::VectorXd x(n);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (size_t k = 0; k < images.size(); ++k) {
+    x.segment<3>(6 * k) = 1e-4 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+    x.segment<3>(6 * k + 3) = model.images[images[k]].pose.centre_in_world + 0.02 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+  }
+  for (size_t k = 0; k < points.size(); ++k) {
+    x.segment<3>(6 * images.size() + 3 * k) = model.points[points[k]].position + 0.02 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+  }
+  for (int it = 0; it < 15; ++it) {
+    const Eigen::VectorXd r0 = residuals(x);
+    Eigen::MatrixXd j(r0.size(), n);
+    for (int c = 0; c < n; ++c) {
+      Eigen::VectorXd xp = x, xm = x;
+      xp[c] += 1e-6;
+      xm[c] -= 1e-6;
+      j.col(c) = (residuals(xp) - residuals(xm)) / 2e-6;
+    }
+    x -= (j.transpose() * j).ldlt().solve(j.transpose() * r0);
+  }
+  double worst = 0.0;
+  for (size_t k = 0; k < images.size(); ++k) {
+    worst = std::max(worst, (x.segment<3>(6 * k + 3) - model.images[images[k]].pose.centre_in_world).cwiseAbs().maxCoeff());
+  }
+  for (size_t k = 0; k < points.size(); ++k) {
+    worst = std::max(worst, (x.segment<3>(6 * images.size() + 3 * k) - model.points[points[k]].position).cwiseAbs().maxCoeff());
+  }
+  std::printf("local frame: %zu images, %zu points; aerotri vs dense Gauss-Newton %.2e m at most\n", images.size(),
+              points.size(), worst);
+  EXPECT_LT(worst, 1e-4);
+  // Residuals are in the file's coordinates.
+  for (const GroundPointResult& c : r.control) {
+    for (const GroundPoint& p : control.points) {
+      if (p.name == c.name) EXPECT_LT((c.surveyed_crs - p.xyz).norm(), 1e-6);
+    }
+  }
+}
+
+// A local frame takes no geodetic GPS, and no geodetic output CRS.
+TEST(Georeferencing, LocalFrameRefusesGeodeticInputs) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(102), {});
+  GcpFile control = scene.control;
+  control.crs = "LOCAL";
+  SparseModel model = ArbitraryFrame(scene.tie_model, 102);
+  try {
+    GeoreferenceAndAdjust(&model, scene.gps, &control, nullptr, Options());
+    ADD_FAILURE() << "GPS accepted in a local frame";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("local engineering frame"), std::string::npos) << e.what();
+  }
+  GeoreferenceOptions options = Options();  // --crs EPSG:32632
+  const std::map<std::string, GpsFix> no_gps;
+  try {
+    GeoreferenceAndAdjust(&model, no_gps, &control, nullptr, options);
+    ADD_FAILURE() << "a geodetic --crs accepted for a local control file";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("'EPSG:32632' is geodetic"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -58,7 +58,7 @@ std::string FormatMetres(double m) {
 // differences over ±1 m; the identity for a geographic CRS, whose figures
 // stay in local ENU metres.
 Eigen::Matrix3d CrsFromEnuJacobian(const LocalFrame& frame, const Crs& crs, const Eigen::Vector3d& enu) {
-  if (crs.IsGeographic()) return Eigen::Matrix3d::Identity();
+  if (crs.IsGeographic() || crs.IsGeocentric()) return Eigen::Matrix3d::Identity();
   Eigen::Matrix3d j;
   for (int k = 0; k < 3; ++k) {
     const Eigen::Vector3d e = Eigen::Vector3d::Unit(k);
@@ -314,8 +314,11 @@ GroundPointResult EvaluateGroundPoint(const std::string& name, PointRole role,
   r.reprojection_rms_px = views.empty() ? 0.0 : std::sqrt(sum / views.size());
   r.surveyed_crs = crs.FromGeodetic(surveyed);
   r.adjusted_crs = crs.FromGeodetic(frame.GeodeticFromEnu(*position_enu));
-  r.d_m = crs.IsGeographic() ? Eigen::Vector3d(*position_enu - frame.EnuFromGeodetic(surveyed))
-                             : Eigen::Vector3d(r.adjusted_crs - r.surveyed_crs);
+  // Geographic and geocentric axes have no metres east / north / up: their
+  // residuals are in local ENU metres.
+  r.d_m = crs.IsGeographic() || crs.IsGeocentric()
+              ? Eigen::Vector3d(*position_enu - frame.EnuFromGeodetic(surveyed))
+              : Eigen::Vector3d(r.adjusted_crs - r.surveyed_crs);
   return r;
 }
 
@@ -331,13 +334,55 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   std::optional<SparseModel> start;
   if (options.leave_one_out) start = *model;
 
-  // 1. Surveyed points in WGS84.
+  // 1. Surveyed points in WGS84 (in a local frame: on its exact stand-in,
+  // Crs::IsLocal()).
   std::vector<SurveyedPoint> surveyed;
-  std::optional<Crs> control_crs, check_crs;
+  std::optional<Crs> control_crs, check_crs, requested_crs;
+  if (control) control_crs = Crs::FromString(control->crs);
+  if (checks) check_crs = Crs::FromString(checks->crs);
+  if (!options.output_crs.empty()) requested_crs = Crs::FromString(options.output_crs);
+  const bool local = (control_crs && control_crs->IsLocal()) || (check_crs && check_crs->IsLocal()) ||
+                     (requested_crs && requested_crs->IsLocal());
+  if (local) {
+    const std::pair<const char*, std::optional<Crs>*> all[] = {
+        {"the control file's", &control_crs}, {"the check file's", &check_crs}, {"--crs", &requested_crs}};
+    std::optional<double> unit;
+    for (const auto& [what, crs] : all) {
+      if (!*crs) continue;
+      if (!(*crs)->IsLocal()) {
+        throw InvalidArgument(std::string(what) + " CRS '" + (*crs)->definition() +
+                              "' is geodetic while another is a local engineering frame: a local frame has no "
+                              "transformation to it; give the control, check points and --crs in one local frame");
+      }
+      if (unit && std::abs(*unit - (*crs)->LocalUnitMetres()) > 1e-12) {
+        throw InvalidArgument("the control and check files' local frames have different length units");
+      }
+      unit = (*crs)->LocalUnitMetres();
+    }
+    if (!gps.empty()) {
+      throw InvalidArgument("GPS positions are geodetic (EXIF, or --gps-csv latitude / longitude) and the control is "
+                            "in a local engineering frame, which has no geodetic link: adjust without GPS (no "
+                            "--images / --gps-csv), or give the control in a geodetic CRS");
+    }
+    // Coordinates about the control's centre keep the stand-in small.
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (const GcpFile* file : {control, checks}) {
+      if (!file || (file == checks && n > 0)) continue;
+      for (const GroundPoint& point : file->points) {
+        mean += point.xyz;
+        ++n;
+      }
+    }
+    if (n > 0) mean /= n;
+    report.local_origin = mean;
+    for (const auto& [what, crs] : all) {
+      if (*crs) *crs = (*crs)->LocalAt(mean);
+    }
+  }
   for (const GcpFile* file : {control, checks}) {
     if (!file) continue;
-    const Crs crs = Crs::FromString(file->crs);
-    (file == control ? control_crs : check_crs) = crs;
+    const Crs& crs = file == control ? *control_crs : *check_crs;
     for (const GroundPoint& point : file->points) {
       SurveyedPoint s;
       s.source = &point;
@@ -379,13 +424,16 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
                             "EXIF GPS, or --gps-csv)");
     }
     report.enu_origin = {lat / n, lon / n, h / n};
+    // A local frame adjusts on its stand-in's own tangent plane: exactly the
+    // file's Cartesian coordinates.
+    if (local) report.enu_origin = Crs::LocalGeodeticOrigin();
   }
   const LocalFrame frame(report.enu_origin);
 
   // Output CRS.
   std::optional<Crs> out_crs;
-  if (!options.output_crs.empty()) {
-    out_crs = Crs::FromString(options.output_crs);
+  if (requested_crs) {
+    out_crs = requested_crs;
     report.crs_source = "--crs";
   } else if (control_crs) {
     out_crs = control_crs;
@@ -396,7 +444,13 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   }
   report.crs = out_crs->definition();
   report.crs_name = out_crs->Name();
-  report.residuals_in_crs_units = !out_crs->IsGeographic();
+  report.residuals_in_crs_units = !out_crs->IsGeographic() && !out_crs->IsGeocentric();
+  report.axes = out_crs->IsLocal()        ? "x, y, z of the local engineering frame (its unit)"
+                : out_crs->IsGeographic() ? "local east, north, up (metres; the CRS is geographic)"
+                : out_crs->IsGeocentric() ? "local east, north, up (metres): the CRS is geocentric, whose X, Y, Z "
+                                            "have no horizontal or vertical meaning"
+                                          : "easting, northing, height of the CRS (its unit)";
+  report.output_crs = out_crs;
 
   // 2. Priors on the cameras.
   int num_gps = 0;

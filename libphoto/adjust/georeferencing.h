@@ -164,6 +164,14 @@ struct GeoreferenceReport {
   std::string crs_name;  // PROJ's name
   std::string crs_source;  // "--crs", "control file", "UTM zone of the survey centre"
   bool residuals_in_crs_units = true;  // false for a geographic CRS: ENU metres
+  // The axes of every residual and sigma (d_m, sigma_m), in words: the grid
+  // axes of a projected CRS, a local frame's x, y, z, or local ENU metres for
+  // a geographic or geocentric CRS (never geocentric X, Y, Z as if one were
+  // vertical).
+  std::string axes;
+  // The output CRS as used (a local frame with its coordinates' origin).
+  std::optional<Crs> output_crs;
+  std::optional<Eigen::Vector3d> local_origin;  // of a local frame (file units)
   Geodetic enu_origin;
   std::string datum_source;  // what the initial similarity was fitted to
   int helmert_correspondences = 0;

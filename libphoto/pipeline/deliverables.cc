@@ -39,8 +39,12 @@ GeoFrame FrameOf(const json& report) {
                           "check-point figures can be given in a CRS");
   }
   const auto& o = report.at("enu_origin");
-  return {LocalFrame({o.at("lat_deg"), o.at("lon_deg"), o.at("h_m")}),
-          Crs::FromString(report.at("crs").get<std::string>())};
+  Crs crs = Crs::FromString(report.at("crs").get<std::string>());
+  if (crs.IsLocal() && report.contains("crs_local_origin")) {
+    const auto& c = report["crs_local_origin"];
+    crs = crs.LocalAt({c.at(0).get<double>(), c.at(1).get<double>(), c.at(2).get<double>()});
+  }
+  return {LocalFrame({o.at("lat_deg"), o.at("lon_deg"), o.at("h_m")}), crs};
 }
 
 // ENU points to the output CRS on all cores (a Crs per thread: PROJ objects

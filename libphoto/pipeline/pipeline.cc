@@ -324,7 +324,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     report = GeoreferenceReportJson(georef, model);
     // Cameras in the output CRS.
     const LocalFrame frame(georef.enu_origin);
-    const Crs crs = Crs::FromString(georef.crs);
+    const Crs crs = *georef.output_crs;
     std::ostringstream csv;
     csv << std::setprecision(12) << "name,x,y,z,lat_deg,lon_deg,h_ellipsoidal_m,gps_de_m,gps_dn_m,gps_du_m\n";
     for (const Image& image : model.images) {

@@ -22,7 +22,7 @@ nlohmann::json PointsJson(const std::vector<GroundPointResult>& points, const Ac
   j["max_h_m"] = s.max_h_m;
   j["max_abs_z_m"] = s.max_abs_z_m;
   j["residuals_frame"] = crs_units ? "output CRS (adjusted - surveyed)"
-                                   : "local ENU metres (adjusted - surveyed); the CRS is geographic";
+                                   : "local ENU metres (adjusted - surveyed); the CRS is geographic or geocentric";
   j["points"] = nlohmann::json::array();
   for (const GroundPointResult& p : points) {
     nlohmann::json pj;
@@ -145,6 +145,8 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   j["crs"] = r.crs;
   j["crs_name"] = r.crs_name;
   j["crs_source"] = r.crs_source;
+  j["residual_axes"] = r.axes;
+  if (r.local_origin) j["crs_local_origin"] = {r.local_origin->x(), r.local_origin->y(), r.local_origin->z()};
   j["enu_origin"] = {{"lat_deg", r.enu_origin.lat_deg},
                      {"lon_deg", r.enu_origin.lon_deg},
                      {"h_m", r.enu_origin.h_m},
