@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "georef/gcp_file.h"
+#include "libphoto/adjust/camera_file.h"
 #include "libphoto/adjust/georeferencing.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/directory_lock.h"
@@ -99,8 +100,11 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;
 
+  const std::optional<CameraFile> camera_file =
+      args.policy.camera_file.empty() ? std::nullopt : std::optional<CameraFile>(ReadCameraFile(args.policy.camera_file));
   ctx.Info("reading model " + args.model_dir);
   SparseModel model = ReadColmapText(args.model_dir);
+  if (camera_file) ApplyCameraFile(*camera_file, &model, &bundle);
   ctx.Info("model: " + std::to_string(model.cameras.size()) + " cameras, " +
            std::to_string(model.images.size()) + " images, " +
            std::to_string(model.points.size()) + " points, " +

@@ -31,6 +31,7 @@ struct AdjustmentPolicyArgs {
   double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
   bool checkpoints_in_bundle = false;
   std::string leave_one_out = "off";  // on, off
+  std::string camera_file;            // a calibration certificate (camera_file.h)
   double function_tolerance = SurveyBundleOptions().function_tolerance;
   double parameter_tolerance = SurveyBundleOptions().parameter_tolerance;
   double gradient_tolerance = SurveyBundleOptions().gradient_tolerance;

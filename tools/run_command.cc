@@ -181,6 +181,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.features.max_features = a.max_features;
   o.matching.gps_neighbours = a.gps_neighbours;
   o.gcp = a.gcp;
+  o.camera_file = a.policy.camera_file;
   o.checkpoints = a.checkpoints;
   o.gcp_pixel_origin = a.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
   o.georef.output_crs = a.crs;

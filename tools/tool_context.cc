@@ -82,6 +82,10 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
                   "than 1 % is held at its EXIF value), none, focal, focal,pp, all, or a list "
                   "(f,cx,cy,k1,k2,k3,p1,p2)")
       ->capture_default_str();
+  cmd->add_option("--camera-file", a->camera_file,
+                  "Interior orientation from a calibration certificate: f, principal point (px, or mm with "
+                  "the pixel size), k1-k3, p1, p2, each a start value, a prior (sigma S) or fixed")
+      ->check(CLI::ExistingFile);
   cmd->add_flag("--checkpoints-in-bundle", a->checkpoints_in_bundle,
                 "Carry check points as free points inside the bundle (no prior), as classic aerial "
                 "triangulation does; default: independent, triangulated afterwards with the cameras held");

@@ -562,6 +562,9 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     if (images_of_camera[c] < options.min_images_to_refine_intrinsics && !refined[c].empty()) {
       refined[c] = model->cameras[c].info().focal_params;
     }
+    for (const auto& [camera, param] : options.held_params) {
+      if (camera == static_cast<int>(c)) refined[c].erase(std::remove(refined[c].begin(), refined[c].end(), param), refined[c].end());
+    }
   }
   auto constant_params = [&](int c) {
     std::vector<int> constant;
@@ -665,6 +668,16 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     problem.AddResidualBlock(
         new ParameterPriorCost(camera.info().num_params(), index, f0, options.focal_prior_sigma_rel * f0),
         nullptr, camera.params.data());
+  }
+  for (const BundleOptions::IntrinsicPrior& prior : options.intrinsics_priors) {
+    if (prior.camera < 0 || prior.camera >= static_cast<int>(model->cameras.size())) continue;
+    Camera& camera = model->cameras[prior.camera];
+    if (!camera_used[prior.camera] || !std::binary_search(refined[prior.camera].begin(), refined[prior.camera].end(),
+                                                          prior.param)) {
+      continue;  // held or not adjusted: a prior has nothing to weigh
+    }
+    problem.AddResidualBlock(new ParameterPriorCost(camera.info().num_params(), prior.param, prior.value, prior.sigma),
+                             nullptr, camera.params.data());
   }
   if (options.use_gcp_priors) {
     for (size_t p = 0; p < model->points.size(); ++p) {

@@ -81,6 +81,17 @@ struct BundleOptions {
   // measured in millimetres with a sensor size get one (ingest.json).
   std::vector<double> focal_prior_px;
   double focal_prior_sigma_rel = 0.10;
+  // A calibration certificate (camera_file.h): priors on single intrinsic
+  // parameters, and parameters held at their values whatever
+  // refine_intrinsics says.
+  struct IntrinsicPrior {
+    int camera = -1;  // index in SparseModel::cameras
+    int param = -1;   // index in the camera's parameters
+    double value = 0.0;
+    double sigma = 0.0;  // px, or unitless for distortion
+  };
+  std::vector<IntrinsicPrior> intrinsics_priors;
+  std::vector<std::pair<int, int>> held_params;  // (camera, parameter index)
 
   bool use_gps_priors = true;
   bool use_gcp_priors = true;

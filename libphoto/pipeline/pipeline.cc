@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "camera_models/exif_intrinsics.h"
+#include "libphoto/adjust/camera_file.h"
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
@@ -312,6 +313,16 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   const bool can_georeference = !gps.empty() || (control && !control->points.empty());
   if (can_georeference && !model.images.empty()) {
     GeoreferenceOptions go = o.georef;
+    if (!o.camera_file.empty()) {
+      // The certificate is in full-resolution pixels; each camera group's
+      // images share a working scale.
+      std::vector<double> full_from_working(model.cameras.size(), 1.0);
+      for (const Image& image : model.images) {
+        const auto it = index_of_name.find(image.name);
+        if (it != index_of_name.end()) full_from_working[image.camera] = ingest.scale[it->second];
+      }
+      ApplyCameraFile(ReadCameraFile(o.camera_file), &model, &go.bundle, full_from_working);
+    }
     go.bundle.num_threads = o.num_threads;
     go.bundle.focal_prior_px = ingest.focal_prior_px;
     go.progress = StageProgress(o, "georeference");
@@ -473,6 +484,7 @@ void ValidateInputs(const PipelineOptions& o) {
   if (!o.images_dir.empty()) {
     for (const auto& entry : fs::directory_iterator(o.images_dir)) photos.insert(entry.path().filename().string());
   }
+  if (!o.camera_file.empty()) ReadCameraFile(o.camera_file);  // its errors name file and line
   for (const fs::path& path : {o.gcp, o.checkpoints}) {
     if (path.empty()) continue;
     const GcpFile file = ReadGcpFile(path, o.gcp_pixel_origin);

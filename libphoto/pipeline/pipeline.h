@@ -55,6 +55,7 @@ struct PipelineOptions {
   std::filesystem::path gcp;          // optional
   std::filesystem::path checkpoints;  // optional
   PixelOrigin gcp_pixel_origin = PixelOrigin::kCentre;  // OpenDroneMap's
+  std::filesystem::path camera_file;  // optional calibration certificate (libphoto/adjust/camera_file.h)
   GeoreferenceOptions georef;
 
   // dense

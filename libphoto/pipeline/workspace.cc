@@ -139,6 +139,7 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
   return {{"ingest", ContentHash(o.workspace / "ingest.json")},
           {"gcp", ContentHash(o.gcp)},
           {"checkpoints", ContentHash(o.checkpoints)},
+          {"camera_file", ContentHash(o.camera_file)},
           {"gcp_pixel_origin", o.gcp_pixel_origin == PixelOrigin::kCorner ? "corner" : "centre"},
           {"crs", g.output_crs},
           {"gcp_sigma_h_m", g.gcp_sigma_h_m},
