@@ -32,6 +32,7 @@ struct AdjustmentPolicyArgs {
   bool checkpoints_in_bundle = false;
   std::string leave_one_out = "off";  // on, off
   std::string camera_file;            // a calibration certificate (camera_file.h)
+  std::string gnss_lever_arm;         // "x,y,z" metres in the camera frame; empty: none
   double function_tolerance = SurveyBundleOptions().function_tolerance;
   double parameter_tolerance = SurveyBundleOptions().parameter_tolerance;
   double gradient_tolerance = SurveyBundleOptions().gradient_tolerance;

@@ -64,6 +64,20 @@ std::string VersionString() {
   return out.str();
 }
 
+namespace {
+// "x,y,z": three finite numbers.
+std::optional<Eigen::Vector3d> ParseVector3(const std::string& text) {
+  std::istringstream in(text);
+  Eigen::Vector3d v;
+  char c1 = 0, c2 = 0;
+  if (!(in >> v.x() >> c1 >> v.y() >> c2 >> v.z()) || c1 != ',' || c2 != ',' || !(in >> std::ws).eof() ||
+      !v.allFinite()) {
+    return std::nullopt;
+  }
+  return v;
+}
+}  // namespace
+
 void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
   cmd->add_option("--tie-sigma-px", a->tie_sigma_px, "Image sigma of tie-point measurements (pixels)")
       ->check(CLI::PositiveNumber)
@@ -86,6 +100,14 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
                   "Interior orientation from a calibration certificate: f, principal point (px, or mm with "
                   "the pixel size), k1-k3, p1, p2, each a start value, a prior (sigma S) or fixed")
       ->check(CLI::ExistingFile);
+  cmd->add_option("--gnss-lever-arm", a->gnss_lever_arm,
+                  "GNSS antenna position in the camera frame, metres 'x,y,z' (x right, y down the image, z "
+                  "along the optical axis): the receiver reads the centre plus the rotated arm")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            return ParseVector3(text) ? std::string() : "expected 'x,y,z' in metres, got '" + text + "'";
+          },
+          "X,Y,Z"));
   cmd->add_flag("--checkpoints-in-bundle", a->checkpoints_in_bundle,
                 "Carry check points as free points inside the bundle (no prior), as classic aerial "
                 "triangulation does; default: independent, triangulated afterwards with the cameras held");
@@ -118,6 +140,11 @@ void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o
   o->bundle.mark_sigma_px = a.mark_sigma_px;
   o->bundle.check_points_in_bundle = a.checkpoints_in_bundle;
   o->leave_one_out = a.leave_one_out == "on";
+  if (!a.gnss_lever_arm.empty()) {
+    const auto l = ParseVector3(a.gnss_lever_arm);
+    if (!l) throw InvalidArgument("--gnss-lever-arm: expected 'x,y,z' in metres, got '" + a.gnss_lever_arm + "'");
+    o->bundle.gnss_lever_arm_m = *l;
+  }
   o->bundle.function_tolerance = a.function_tolerance;
   o->bundle.parameter_tolerance = a.parameter_tolerance;
   o->bundle.gradient_tolerance = a.gradient_tolerance;

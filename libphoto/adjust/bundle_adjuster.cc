@@ -639,7 +639,16 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     for (size_t i = 0; i < num_images; ++i) {
       Image& image = model->images[i];
       if (!image_used[i] || !image.gps_prior) continue;
-      if (options.estimate_gps_offset) {
+      if (!options.gnss_lever_arm_m.isZero()) {
+        const PositionPrior& p = *image.gps_prior;
+        ceres::CostFunction* cost = MakeLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
+                                                          options.gnss_lever_arm_m, options.estimate_gps_offset);
+        if (options.estimate_gps_offset) {
+          problem.AddResidualBlock(cost, nullptr, rotations[i].data(), image.pose.centre_in_world.data(), gps_offset);
+        } else {
+          problem.AddResidualBlock(cost, nullptr, rotations[i].data(), image.pose.centre_in_world.data());
+        }
+      } else if (options.estimate_gps_offset) {
         problem.AddResidualBlock(new OffsetPositionPriorCost(image.gps_prior->position,
                                                              image.gps_prior->sigma_h_m,
                                                              image.gps_prior->sigma_v_m),

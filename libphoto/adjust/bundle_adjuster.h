@@ -104,6 +104,10 @@ struct BundleOptions {
   // at its initial value. initial_gps_offset_m is the start (ENU metres).
   bool estimate_gps_offset = false;
   Eigen::Vector3d initial_gps_offset_m = Eigen::Vector3d::Zero();
+  // The GNSS antenna's position in the camera frame (metres; x right, y
+  // down the image, z along the optical axis): the receiver reads
+  // C + Rᵀ l. Zero: the antenna at the camera centre.
+  Eigen::Vector3d gnss_lever_arm_m = Eigen::Vector3d::Zero();
 
   LinearSolverChoice linear_solver = LinearSolverChoice::kAuto;
   int num_threads = 0;  // 0: all hardware threads

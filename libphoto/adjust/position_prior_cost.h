@@ -7,6 +7,8 @@
 // unitless, so that it weighs against reprojection residuals scaled by their
 // own σ (px). Analytic Jacobian: diag(1/σh, 1/σh, 1/σv).
 
+#include <ceres/autodiff_cost_function.h>
+#include <ceres/rotation.h>
 #include <ceres/sized_cost_function.h>
 
 #include <Eigen/Cholesky>
@@ -70,6 +72,47 @@ class OffsetPositionPriorCost final : public ceres::SizedCostFunction<3, 3, 3> {
   Eigen::Vector3d prior_;
   Eigen::Vector3d inv_sigma_;
 };
+
+// GPS prior through a lever arm: the antenna sits at l in the camera frame
+// (OpenCV axes: x right, y down the image, z along the optical axis), so the
+// receiver reads C + Rᵀ l (+ o, the shared offset, when estimated):
+//   r = ((C + Rᵀ l + o − P) / σh, …, / σv).
+// Blocks: cam_from_world quaternion (w, x, y, z), C, and o when kWithOffset.
+// Autodiff: the rotation enters through l only (a few decimetres).
+template <bool kWithOffset>
+struct LeverArmPositionPrior {
+  Eigen::Vector3d prior, lever, inv_sigma;
+  template <typename T>
+  bool Residual(const T* q, const T* c, const T* o, T* r) const {
+    const T conj[4] = {q[0], -q[1], -q[2], -q[3]};
+    const T l[3] = {T(lever.x()), T(lever.y()), T(lever.z())};
+    T arm[3];
+    ceres::UnitQuaternionRotatePoint(conj, l, arm);
+    for (int i = 0; i < 3; ++i) {
+      r[i] = (c[i] + arm[i] + (o ? o[i] : T(0.0)) - T(prior[i])) * T(inv_sigma[i]);
+    }
+    return true;
+  }
+  template <typename T>
+  bool operator()(const T* q, const T* c, T* r) const {
+    return Residual(q, c, static_cast<const T*>(nullptr), r);
+  }
+  template <typename T>
+  bool operator()(const T* q, const T* c, const T* o, T* r) const {
+    return Residual(q, c, o, r);
+  }
+};
+
+inline ceres::CostFunction* MakeLeverArmPriorCost(const Eigen::Vector3d& prior, double sigma_h_m, double sigma_v_m,
+                                                  const Eigen::Vector3d& lever, bool with_offset) {
+  const Eigen::Vector3d inv(1.0 / sigma_h_m, 1.0 / sigma_h_m, 1.0 / sigma_v_m);
+  if (with_offset) {
+    return new ceres::AutoDiffCostFunction<LeverArmPositionPrior<true>, 3, 4, 3, 3>(
+        new LeverArmPositionPrior<true>{prior, lever, inv});
+  }
+  return new ceres::AutoDiffCostFunction<LeverArmPositionPrior<false>, 3, 4, 3>(
+      new LeverArmPositionPrior<false>{prior, lever, inv});
+}
 
 // Prior on one parameter of a block of size n (a camera's focal length):
 // r = (x[index] - prior) / sigma.

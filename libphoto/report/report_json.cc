@@ -97,6 +97,8 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
       params[camera.info().param_names[i]] = camera.params[i];
     }
     c["params"] = params;
+    c["pixel_convention"] = "cx, cy with (0, 0) at the centre of the top-left pixel (OpenCV, OpenSfM); COLMAP's "
+                            "cameras.txt puts that centre at (0.5, 0.5), so its cx, cy are these plus 0.5";
     j["intrinsics"].push_back(c);
   }
   return j;
@@ -302,6 +304,10 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   j["adjustment"]["gps_offset"] = {{"estimated", r.bundle.gps_offset_estimated},
                                    {"note", "GPS minus camera centre, ENU metres"},
                                    {"offset", enu(r.bundle.gps_offset_m)}};
+  if (r.bundle.gps_offset_estimated && r.bundle.precision.has_gps_offset) {
+    const Eigen::Matrix3d& c = r.bundle.precision.gps_offset_cov;
+    j["adjustment"]["gps_offset"]["sigma"] = enu(c.diagonal().cwiseMax(0.0).cwiseSqrt());
+  }
   j["status"] = SurveyStatus(r.findings);
   j["warnings"] = FindingsJson(r.findings, Severity::kWarning);
   j["errors"] = FindingsJson(r.findings, Severity::kError);
