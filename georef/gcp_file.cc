@@ -147,7 +147,12 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
       it = by_name.find(name);
     }
     GroundPoint& point = file.points[it->second];
-    if ((point.xyz - xyz).norm() > 1e-6 * std::max(1.0, xyz.norm())) {
+    // One point, one position: to a millimetre (1e-8 for what may be
+    // degrees), not relatively (1e-6 of a UTM northing is 5 m).
+    const bool degrees = std::abs(xyz.x()) <= 360.0 && std::abs(xyz.y()) <= 360.0;
+    const double tol_xy = degrees ? 1e-8 : 1e-3;
+    if (std::abs(point.xyz.x() - xyz.x()) > tol_xy || std::abs(point.xyz.y() - xyz.y()) > tol_xy ||
+        std::abs(point.xyz.z() - xyz.z()) > 1e-3) {
       throw ParseError(p, number, "point '" + name + "' has other coordinates here than on line " +
                                       std::to_string(point.first_line));
     }
@@ -157,6 +162,10 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
     point.measurements.push_back({cols[5], Eigen::Vector2d(v[3] - shift, v[4] - shift), number, sigma_px});
   }
   if (file.crs.empty()) throw ParseError(p, 0, "empty file: expected a CRS on the first line");
+  if (file.points.empty()) {
+    throw ParseError(p, file.crs_line, "no measurement lines after the CRS line: expected lines " +
+                                           std::string(kColumns));
+  }
   return file;
 }
 

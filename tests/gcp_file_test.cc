@@ -112,6 +112,9 @@ TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
       {"EPSG:32632\n1 2 3 4 5 a.jpg P sigma_x=0.1 sigma_z=0.2\n", 2,
        "expected sigma_x, sigma_y and sigma_z together, got 2 of them"},
       {"1 2 3 4 5 a.jpg\n", 1, "expected a CRS on the first line"},
+      {"EPSG:32632\n384902.84 5150696.35 449.91 4 5 a.jpg P\n384902.84 5150696.352 449.91 4 5 b.jpg P\n", 3,
+       "point 'P' has other coordinates here than on line 2"},
+      {"EPSG:32632\n# surveyed, but nothing measured yet\n", 1, "no measurement lines after the CRS line"},
       {"\n# only a comment\n", 0, "empty file"},
   };
   testing::TempDir dir;

@@ -811,5 +811,52 @@ TEST(Georeferencing, LeverArmTurnsWithTheCamera) {
   EXPECT_GT(without.bundle.sigma0, with.bundle.sigma0);
 }
 
+
+// A mark outside its image is skipped and said so, with file, line and the
+// image's size; never the false "not measured in any image".
+TEST(Georeferencing, MarksOutsideTheImageAreNamed) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(131), {});
+  GcpFile control = scene.control;
+  control.points.at(0).measurements.at(0).xy_px = Eigen::Vector2d(-40.0, 10.0);
+  control.points.at(0).measurements.at(0).line = 17;
+  SparseModel model = ArbitraryFrame(scene.tie_model, 131);
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &control, &scene.checks, Options());
+  bool named = false;
+  for (const Finding& f : r.findings) {
+    if (f.code == "INPUT" && f.message.find("simulated_gcp_list.txt:17: mark (-40.0, 10.0) px is outside image") == 0) {
+      named = f.items == std::vector<std::string>{control.points[0].name};
+    }
+  }
+  EXPECT_TRUE(named);
+  EXPECT_TRUE(r.control.at(0).solved);  // its other marks still hold it
+}
+
+
+// Control that cannot belong to the survey (here: the northings of two
+// points negated, as a wrong hemisphere would) is an error naming them,
+// with the true reason, and does not pull the block.
+TEST(Georeferencing, ControlOutsideTheSurveyIsAnErrorNamingThePoints) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(141), {});
+  GcpFile control = scene.control;
+  for (int k : {2, 5}) control.points.at(k).xyz.y() = -control.points[k].xyz.y();
+  SparseModel model = ArbitraryFrame(scene.tie_model, 141);
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, scene.gps, &control, &scene.checks, Options());
+  const Finding* f = nullptr;
+  for (const Finding& x : r.findings) {
+    if (x.code == "CONTROL_OUTSIDE_SURVEY") f = &x;
+  }
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(f->severity, Severity::kError);
+  EXPECT_EQ(f->items, (std::vector<std::string>{control.points[2].name, control.points[5].name}));
+  EXPECT_EQ(SurveyStatus(r.findings), "failed");
+  EXPECT_FALSE(r.control.at(2).solved);
+  EXPECT_EQ(r.control.at(2).why_not.rfind("outside the survey: ", 0), 0u) << r.control[2].why_not;
+  EXPECT_LT(r.check_stats.rmse_3d_m, 0.05);  // the other six hold the datum
+  // The clean file: nothing flagged.
+  SparseModel clean = ArbitraryFrame(scene.tie_model, 141);
+  const GeoreferenceReport ok = GeoreferenceAndAdjust(&clean, scene.gps, &scene.control, &scene.checks, Options());
+  for (const Finding& x : ok.findings) EXPECT_NE(x.code, "CONTROL_OUTSIDE_SURVEY");
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -37,6 +37,7 @@ struct SurveyedPoint {
   Geodetic geodetic;
   PointRole role = PointRole::kControl;
   int point_index = -1;  // in the model, once added
+  std::string excluded;  // why its measurements were left out, when they were
 };
 
 std::vector<View> ViewsOf(const SparseModel& model, int point_index) {
@@ -476,6 +477,52 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     ++num_gps;
   }
 
+  // Surveyed points that cannot belong to the survey: horizontally farther
+  // from every GPS camera position than the photos can see (three flying
+  // heights) plus five GPS sigmas and 50 m. A control file in another zone,
+  // hemisphere or CRS, or with its axes swapped or negated, ends here; its
+  // points must not pull the block.
+  {
+    std::vector<Eigen::Vector3d> cameras;
+    std::vector<double> sigmas, heights;
+    for (const Image& image : model->images) {
+      if (!image.registered || !image.gps_prior) continue;
+      cameras.push_back(image.gps_prior->position);
+      sigmas.push_back(image.gps_prior->sigma_h_m);
+      heights.push_back(image.gps_prior->position.z());
+    }
+    if (cameras.size() >= 3 && !local) {
+      auto median = [](std::vector<double> v) {
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        return v[v.size() / 2];
+      };
+      std::vector<double> ground;
+      for (const SurveyedPoint& s : surveyed) ground.push_back(frame.EnuFromGeodetic(s.geodetic).z());
+      const double flying = ground.empty() ? 0.0 : std::abs(median(heights) - median(ground));
+      const double limit = 3.0 * flying + 5.0 * median(sigmas) + 50.0;
+      std::vector<std::string> far;
+      for (SurveyedPoint& s : surveyed) {
+        const Eigen::Vector3d p = frame.EnuFromGeodetic(s.geodetic);
+        double nearest = std::numeric_limits<double>::infinity();
+        for (const Eigen::Vector3d& c : cameras) nearest = std::min(nearest, (p - c).head<2>().norm());
+        if (nearest <= limit) continue;
+        char text[160];
+        std::snprintf(text, sizeof text, "%.0f m from the nearest GPS camera position (the photos see %.0f m)",
+                      nearest, limit);
+        s.excluded = std::string("outside the survey: ") + text;
+        far.push_back(s.source->name);
+      }
+      if (!far.empty()) {
+        report.findings.push_back(Finding::Error(
+            "CONTROL_OUTSIDE_SURVEY",
+            std::to_string(far.size()) + " surveyed points lie outside the photographed area (farther from every GPS "
+            "camera position than three flying heights and five GPS sigmas): " + JoinNames(far) +
+            "; left out. A wrong CRS line, zone or hemisphere, swapped or negated axes, or another site's file?",
+            far));
+      }
+    }
+  }
+
   // Control and check points with their observations.
   for (SurveyedPoint& s : surveyed) {
     Point point;
@@ -501,12 +548,24 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     s.point_index = static_cast<int>(model->points.size());
     model->points.push_back(point);
     for (const GcpMeasurement& m : s.source->measurements) {
+      if (!s.excluded.empty()) break;
       const auto it = image_by_name.find(m.image);
       if (it == image_by_name.end()) {
         report.findings.push_back(Finding::Warning(
             "INPUT", (s.role == PointRole::kControl ? control->path : checks->path) + ":" +
                          std::to_string(m.line) + ": image '" + m.image +
                          "' is not in the model; measurement skipped",
+            {s.source->name}));
+        continue;
+      }
+      const Camera& camera = model->cameras[model->images[it->second].camera];
+      if (!(m.xy_px.x() >= -0.5 && m.xy_px.y() >= -0.5 && m.xy_px.x() <= camera.width - 0.5 &&
+            m.xy_px.y() <= camera.height - 0.5)) {
+        char text[200];
+        std::snprintf(text, sizeof text, ": mark (%.1f, %.1f) px is outside image '%s' (%d x %d px); measurement "
+                      "skipped", m.xy_px.x(), m.xy_px.y(), m.image.c_str(), camera.width, camera.height);
+        report.findings.push_back(Finding::Warning(
+            "INPUT", (s.role == PointRole::kControl ? control->path : checks->path) + ":" + std::to_string(m.line) + text,
             {s.source->name}));
         continue;
       }
@@ -809,6 +868,10 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
         EvaluateGroundPoint(s.source->name, s.role, ViewsOf(*model, s.point_index), s.geodetic, frame,
                             *out_crs, /*triangulate=*/s.role == PointRole::kCheck && !report.check_points_in_bundle,
                             &point.position);
+    if (!s.excluded.empty()) {
+      r.solved = false;
+      r.why_not = s.excluded;
+    }
     if (r.solved) (s.role == PointRole::kControl ? control_d : check_d).push_back(r.d_m);
     const PointPrecision* precision = report.bundle.precision.ForPoint(s.point_index);
     if (r.solved && precision) {

@@ -56,8 +56,9 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
       }
     }
   }
-  WriteGcpFile(scene.control, dir / "gcp_list.txt");
-  WriteGcpFile(scene.checks, dir / "checkpoints.txt");
+  // A file without points would be refused as input: none is written.
+  if (!scene.control.points.empty()) WriteGcpFile(scene.control, dir / "gcp_list.txt");
+  if (!scene.checks.points.empty()) WriteGcpFile(scene.checks, dir / "checkpoints.txt");
 
   // GPS as EGM96 altitudes (what EXIF calls "above sea level").
   std::ostringstream csv;
