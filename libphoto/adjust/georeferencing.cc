@@ -798,7 +798,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   // 4. Bundle adjustment with priors.
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
   bundle.compute_intrinsics_covariance = true;
-  bundle.compute_precision = true;
+  bundle.compute_precision = options.posterior_precision;
   const SparseModel before_final = *model;
   report.bundle = AdjustBundle(model, bundle);
   report.refined = report.bundle.refined_intrinsics;
@@ -967,7 +967,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
     report.cameras.push_back(c);
   }
-  if (!precision.computed) {
+  if (options.posterior_precision && !precision.computed) {
     report.findings.push_back(Finding::Warning(
         "PRECISION_NOT_COMPUTED", "posterior standard deviations and the marks' w-test are missing: " + precision.note));
   }
@@ -1021,6 +1021,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       GeoreferenceOptions once = options;
       once.leave_one_out = false;
       once.progress = nullptr;
+      once.posterior_precision = false;
       std::vector<Eigen::Vector3d> d;
       for (int k = 0; k < n; ++k) {
         ReportProgress(options.progress, 0.9 + 0.1 * k / n,

@@ -81,6 +81,10 @@ struct GeoreferenceOptions {
   // triangulated as an independent check (GeoreferenceReport::
   // leave_one_out). Needs 4 or more control points (3 still hold the datum).
   bool leave_one_out = false;
+  // Posterior sigmas and the marks' w-test after the adjustment
+  // (BundleOptions::compute_precision); leave-one-out's own adjustments,
+  // which report only the withheld point's residual, go without.
+  bool posterior_precision = true;
   BundleOptions bundle = SurveyBundleOptions();
   ProgressCallback progress;
 };
