@@ -44,10 +44,30 @@ void RegisterBalCommand(CLI::App& app, CommandAction* run) {
                   "this (pixels) and solve again; 0 = off")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_option("--optimality-gap", args->optimality_gap,
+                  "Stop once the cost is estimated within this fraction of the optimum (from the last "
+                  "accepted decreases: the last one and its geometric extrapolation); 0 = off")
+      ->check(CLI::Range(0.0, 0.999))
+      ->capture_default_str();
   cmd->add_option("--function-tolerance", args->function_tolerance,
-                  "Stop when the relative cost decrease falls below this")
+                  "Stop when one step's relative cost decrease falls below this")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  cmd->add_option("--gradient-tolerance", args->gradient_tolerance,
+                  "Stop when the largest gradient component falls below this")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--parameter-tolerance", args->parameter_tolerance,
+                  "Stop when the step is below this, relative to the parameters")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--engine", args->engine,
+                  "Who solves: aerotri (its own dense-Schur Levenberg-Marquardt, for problems whose "
+                  "camera system fits in memory dense), ceres, or auto (aerotri where it applies)")
+      ->check(CLI::IsMember({"auto", "aerotri", "ceres"}))
+      ->capture_default_str();
+  cmd->add_flag("--diagnostics", args->diagnostics,
+                "After the solve, count observations behind their camera and weak images and points");
   cmd->add_flag("--solver-report", args->solver_report,
                 "Print Ceres' full solver report (timings per phase) on stderr");
   *run = nullptr;
@@ -66,6 +86,11 @@ int RunBal(const BalArgs& args, ToolContext& ctx) {
   options.max_iterations = args.max_iterations;
   options.outlier_threshold_px = args.outlier_threshold_px;
   options.function_tolerance = args.function_tolerance;
+  options.gradient_tolerance = args.gradient_tolerance;
+  options.parameter_tolerance = args.parameter_tolerance;
+  options.optimality_gap = args.optimality_gap;
+  options.engine = *ParseBundleEngine(args.engine);
+  options.compute_diagnostics = args.diagnostics;
   options.keep_solver_report = args.solver_report;
   if (!ctx.quiet) {
     std::ostream* err = ctx.err;

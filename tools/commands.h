@@ -66,6 +66,11 @@ struct BalArgs {
   std::string refine = "all";
   double outlier_threshold_px = 0.0;
   double function_tolerance = 1e-6;
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-8;
+  double optimality_gap = 5e-4;
+  std::string engine = "auto";
+  bool diagnostics = false;
   bool solver_report = false;
 };
 void RegisterBalCommand(CLI::App& app, CommandAction* run);

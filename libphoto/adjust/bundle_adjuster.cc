@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "libphoto/adjust/bundle_precision.h"
+#include "libphoto/adjust/dense_schur_solver.h"
 #include "libphoto/adjust/position_prior_cost.h"
 #include "libphoto/adjust/reprojection_cost.h"
 #include "libphoto/base/error.h"
@@ -35,26 +36,32 @@ std::string Lower(std::string s) {
   return s;
 }
 
-// Forwards Ceres iterations to the user's callback.
+// Forwards Ceres iterations to the user's callback and applies the
+// optimality-gap stopping rule (BundleStopRule) to the accepted steps.
 class IterationForwarder final : public ceres::IterationCallback {
  public:
-  IterationForwarder(const std::function<void(const IterationReport&)>& fn,
-                     int round)
-      : fn_(fn), round_(round) {}
+  IterationForwarder(const std::function<void(const IterationReport&)>& fn, int round, double optimality_gap)
+      : fn_(fn), round_(round), stop_(optimality_gap) {}
   ceres::CallbackReturnType operator()(
       const ceres::IterationSummary& summary) override {
-    IterationReport report;
-    report.iteration = summary.iteration;
-    report.cost = summary.cost;
-    report.time_s = summary.cumulative_time_in_seconds;
-    report.round = round_;
-    fn_(report);
+    if (fn_) {
+      IterationReport report;
+      report.iteration = summary.iteration;
+      report.cost = summary.cost;
+      report.time_s = summary.cumulative_time_in_seconds;
+      report.round = round_;
+      fn_(report);
+    }
+    if ((summary.iteration == 0 || summary.step_is_successful) && stop_.Accepted(summary.cost)) {
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
     return ceres::SOLVER_CONTINUE;
   }
 
  private:
   const std::function<void(const IterationReport&)>& fn_;
   int round_;
+  BundleStopRule stop_;
 };
 
 std::unique_ptr<ceres::LossFunction> MakeLoss(const BundleOptions& options, double sigma_px) {
@@ -141,6 +148,7 @@ struct RoundResult {
   std::vector<IntrinsicsPrecision> precision;
   std::string covariance_note;
   BundlePrecision posterior;  // a priori (unit weight) until AdjustBundle scales it
+  std::string report;         // the aerotri engine's report (keep_solver_report)
 };
 
 // The a-priori covariance of every refined intrinsics block and its
@@ -445,6 +453,82 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
 
 // precision_pass: no solve; the problem at the current values gives
 // RoundResult::posterior (BundleOptions::compute_precision).
+
+// The problem for aerotri's dense-Schur solver (BundleOptions::engine), when
+// it applies: a free network (no priors) of reprojection residuals without a
+// robust loss, every adjusted image in a merged block [q, C, intrinsics] of
+// its own, one camera model, a reduced camera system of at most
+// kMaxDenseSchurSize rows. Otherwise false with the reason.
+bool MakeDenseSchurProblem(SparseModel* model, const BundleOptions& options, const std::vector<char>& image_used,
+                           const std::vector<char>& point_used, const std::vector<std::vector<int>>& refined,
+                           bool free_network, std::vector<std::vector<double>>* merged, DenseSchurProblem* problem,
+                           std::string* why_not) {
+  auto no = [&](const std::string& reason) {
+    *why_not = reason;
+    return false;
+  };
+  if (options.engine == BundleEngine::kCeres) return no("Ceres was asked for");
+  if (options.linear_solver != LinearSolverChoice::kAuto && options.linear_solver != LinearSolverChoice::kDenseSchur) {
+    return no("the linear solver " + ToString(options.linear_solver) + " was asked for");
+  }
+  if (options.loss != LossType::kNone) return no("a robust loss (" + ToString(options.loss) + ") is set");
+  if (!free_network) return no("GPS or control priors hold the datum");
+  if (!options.intrinsics_priors.empty()) return no("intrinsics priors are set");
+  std::vector<int> camera_of_image(model->images.size(), -1);
+  int size = 0;
+  for (size_t i = 0; i < model->images.size(); ++i) {
+    if (!image_used[i]) continue;
+    const int c = model->images[i].camera;
+    const Camera& camera = model->cameras[c];
+    if ((*merged)[i].empty()) return no("image '" + model->images[i].name + "' shares its camera group or is held");
+    if (problem->cameras.empty()) problem->model = camera.model;
+    if (camera.model != problem->model) return no("the images use more than one camera model");
+    if (c < static_cast<int>(options.focal_prior_px.size()) && options.focal_prior_px[c] > 0.0) {
+      return no("a focal-length prior is set");
+    }
+    camera_of_image[i] = static_cast<int>(problem->cameras.size());
+    problem->cameras.push_back((*merged)[i].data());
+    std::vector<char> mask(camera.info().num_params(), 0);
+    for (int k : refined[c]) mask[k] = 1;
+    problem->refined.push_back(std::move(mask));
+    size += 6 + camera.info().num_params();
+  }
+  if (problem->cameras.empty()) return no("no image to adjust");
+  if (size > kMaxDenseSchurSize) {
+    return no("the reduced camera system has " + std::to_string(size) + " rows, above " +
+              std::to_string(kMaxDenseSchurSize));
+  }
+  std::vector<int> index_of_point(model->points.size(), -1);
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    if (!point_used[p]) continue;
+    index_of_point[p] = static_cast<int>(problem->points.size());
+    problem->points.push_back(model->points[p].position.data());
+  }
+  const double mark_sigma = options.mark_sigma_px > 0.0 ? options.mark_sigma_px : options.observation_sigma_px;
+  for (const Observation& obs : model->observations) {
+    if (!image_used[obs.image] || !point_used[obs.point]) continue;
+    const bool is_mark = model->points[obs.point].role != PointRole::kTie;
+    const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px : is_mark ? mark_sigma : options.observation_sigma_px;
+    problem->observations.push_back(
+        {camera_of_image[obs.image], index_of_point[obs.point], obs.xy.x(), obs.xy.y(), 1.0 / sigma});
+  }
+  return true;
+}
+
+// The aerotri engine's summary in the fields of Ceres' that AdjustBundle reads.
+void FillCeresSummary(const DenseSchurSummary& s, ceres::Solver::Summary* out) {
+  out->initial_cost = s.initial_cost;
+  out->final_cost = s.final_cost;
+  out->iterations.assign(s.iterations + 1, ceres::IterationSummary());
+  out->termination_type = s.termination == "CONVERGENCE"      ? ceres::CONVERGENCE
+                          : s.termination == "NO_CONVERGENCE" ? ceres::NO_CONVERGENCE
+                                                              : ceres::FAILURE;
+  out->message = s.message;
+  out->total_time_in_seconds = s.time_s;
+  out->num_residuals_reduced = s.num_residuals;
+  out->num_effective_parameters_reduced = s.num_parameters;
+}
+
 RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
                       double* gps_offset, bool precision_pass = false) {
   const auto setup_start = Clock::now();
@@ -594,6 +678,84 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
+  auto DescribeGauge = [&]() {
+    std::ostringstream gauge;
+    if (datum_from_priors) {
+      gauge << "datum from priors (" << result.num_gps << " GPS, " << result.num_gcp
+            << " GCP); no parameter held fixed";
+      if (result.offset_estimated) gauge << "; GPS offset estimated, translation from the GCPs";
+    } else if (datum.a >= 0) {
+      const std::string a = model->images[datum.a].name;
+      const std::string b = datum.b >= 0 ? model->images[datum.b].name : "";
+      if (prior_positions.empty()) {
+        gauge << "no priors: pose of image '" << a << "' held"
+              << (free_gauge ? " (restored exactly after a free-network solve)" : " fixed")
+              << "; scale held by the baseline '" << a << "'-'" << b
+              << "' (restored exactly after the solve, reprojection being blind to scale)";
+      } else {
+        gauge << "priors too few or collinear (" << prior_positions.size()
+              << "): rotation of image '" << a << "' held fixed";
+        if (restore_scale) gauge << ", baseline '" << a << "'-'" << b << "' holds the scale";
+      }
+    }
+    return gauge.str();
+  };
+
+  // The solved blocks back into the model, and the datum restored.
+  auto WriteBack = [&]() {
+    for (size_t i = 0; i < num_images; ++i) {
+      if (!image_used[i]) continue;
+      Image& image = model->images[i];
+      const double* q = merged[i].empty() ? rotations[i].data() : merged[i].data();
+      image.pose.cam_from_world = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+      if (!merged[i].empty()) {
+        for (int k = 0; k < 3; ++k) image.pose.centre_in_world[k] = merged[i][4 + k];
+        Camera& camera = model->cameras[image.camera];
+        std::copy(merged[i].begin() + 7, merged[i].end(), camera.params.begin());
+      }
+    }
+    if (!datum_from_priors) {
+      RestoreDatum(datum, /*restore_rotation=*/free_gauge, restore_scale, image_used, point_used, model);
+    }
+  };
+
+  // aerotri's own dense-Schur solver where it applies (BundleOptions::engine).
+  if (!precision_pass) {
+    std::string why_not;
+    DenseSchurProblem schur;
+    if (MakeDenseSchurProblem(model, options, image_used, point_used, refined, prior_positions.empty() && free_gauge,
+                              &merged, &schur, &why_not)) {
+      DenseSchurOptions so;
+      so.max_iterations = options.max_iterations;
+      so.function_tolerance = options.function_tolerance;
+      so.gradient_tolerance = options.gradient_tolerance;
+      so.parameter_tolerance = options.parameter_tolerance;
+      so.optimality_gap = options.optimality_gap;
+      so.max_time_s = options.max_time_s;
+      so.num_threads = options.num_threads;
+      if (options.iteration_callback) {
+        so.iteration_callback = [&](int iteration, double cost, double time_s) {
+          options.iteration_callback(IterationReport{iteration, cost, time_s, round});
+        };
+      }
+      result.setup_s = SecondsSince(setup_start);
+      const DenseSchurSummary summary = SolveDenseSchur(schur, so);
+      result.solver = "aerotri_dense_schur";
+      result.num_images = static_cast<int>(std::count(image_used.begin(), image_used.end(), 1));
+      result.gauge = DescribeGauge();
+      FillCeresSummary(summary, &result.ceres);
+      if (options.keep_solver_report) result.report = summary.Report();
+      if (options.compute_intrinsics_covariance) {
+        result.covariance_note = "not computed: images with a camera group of their own";
+      }
+      WriteBack();
+      return result;
+    }
+    if (options.engine == BundleEngine::kAerotri) {
+      throw InvalidArgument("bundle adjustment: the aerotri engine does not apply: " + why_not);
+    }
+  }
+
   // Target marks' residual blocks, with their observation index.
   std::vector<std::pair<ceres::ResidualBlockId, int>> mark_blocks;
   for (size_t k = 0; k < model->observations.size(); ++k) {
@@ -737,28 +899,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
-  {
-    std::ostringstream gauge;
-    if (datum_from_priors) {
-      gauge << "datum from priors (" << result.num_gps << " GPS, " << result.num_gcp
-            << " GCP); no parameter held fixed";
-      if (result.offset_estimated) gauge << "; GPS offset estimated, translation from the GCPs";
-    } else if (datum.a >= 0) {
-      const std::string a = model->images[datum.a].name;
-      const std::string b = datum.b >= 0 ? model->images[datum.b].name : "";
-      if (prior_positions.empty()) {
-        gauge << "no priors: pose of image '" << a << "' held"
-              << (free_gauge ? " (restored exactly after a free-network solve)" : " fixed")
-              << "; scale held by the baseline '" << a << "'-'" << b
-              << "' (restored exactly after the solve, reprojection being blind to scale)";
-      } else {
-        gauge << "priors too few or collinear (" << prior_positions.size()
-              << "): rotation of image '" << a << "' held fixed";
-        if (restore_scale) gauge << ", baseline '" << a << "'-'" << b << "' holds the scale";
-      }
-    }
-    result.gauge = gauge.str();
-  }
+  result.gauge = DescribeGauge();
 
   ceres::Solver::Options solver_options;
   solver_options.minimizer_type = ceres::TRUST_REGION;
@@ -818,8 +959,8 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   if (result.num_points > 0) solver_options.linear_solver_ordering = ordering;
 
   std::unique_ptr<IterationForwarder> forwarder;
-  if (options.iteration_callback) {
-    forwarder = std::make_unique<IterationForwarder>(options.iteration_callback, round);
+  if (options.iteration_callback || options.optimality_gap > 0.0) {
+    forwarder = std::make_unique<IterationForwarder>(options.iteration_callback, round, options.optimality_gap);
     solver_options.callbacks.push_back(forwarder.get());
   }
   result.setup_s = SecondsSince(setup_start);
@@ -847,20 +988,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
-  for (size_t i = 0; i < num_images; ++i) {
-    if (!image_used[i]) continue;
-    Image& image = model->images[i];
-    const double* q = merged[i].empty() ? rotations[i].data() : merged[i].data();
-    image.pose.cam_from_world = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
-    if (!merged[i].empty()) {
-      for (int k = 0; k < 3; ++k) image.pose.centre_in_world[k] = merged[i][4 + k];
-      Camera& camera = model->cameras[image.camera];
-      std::copy(merged[i].begin() + 7, merged[i].end(), camera.params.begin());
-    }
-  }
-  if (!datum_from_priors) {
-    RestoreDatum(datum, /*restore_rotation=*/free_gauge, restore_scale, image_used, point_used, model);
-  }
+  WriteBack();
   return result;
 }
 
@@ -927,6 +1055,22 @@ std::string ToString(LinearSolverChoice solver) {
     case LinearSolverChoice::kIterativeSchur: return "iterative_schur";
   }
   return "?";
+}
+
+std::string ToString(BundleEngine engine) {
+  switch (engine) {
+    case BundleEngine::kAuto: return "auto";
+    case BundleEngine::kCeres: return "ceres";
+    case BundleEngine::kAerotri: return "aerotri";
+  }
+  return "?";
+}
+
+std::optional<BundleEngine> ParseBundleEngine(const std::string& name) {
+  for (BundleEngine e : {BundleEngine::kAuto, BundleEngine::kCeres, BundleEngine::kAerotri}) {
+    if (ToString(e) == Lower(name)) return e;
+  }
+  return std::nullopt;
 }
 
 std::string ToString(IntrinsicsRefinement refinement) {
@@ -996,6 +1140,9 @@ bool BundleOptions::Validate(std::string* error) const {
   }
   if (num_threads < 0) return fail("threads must be >= 0 (0 = all), got " + std::to_string(num_threads));
   if (max_iterations < 0) return fail("max iterations must be >= 0, got " + std::to_string(max_iterations));
+  if (!(optimality_gap >= 0.0 && optimality_gap < 1.0)) {
+    return fail("optimality gap must be in [0, 1) (0 = off), got " + std::to_string(optimality_gap));
+  }
   if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) ||
       !(parameter_tolerance >= 0.0)) {
     return fail("solver tolerances must be >= 0");
@@ -1034,7 +1181,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   model->Validate();
 
   BundleSummary summary;
-  summary.num_behind_camera_initial = CountBehindCamera(*model);
+  if (options.compute_diagnostics) summary.num_behind_camera_initial = CountBehindCamera(*model);
   summary.initial_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
   summary.refined_intrinsics = ToString(options.refine_intrinsics);
   if (options.refine_intrinsics == IntrinsicsRefinement::kList) {
@@ -1069,7 +1216,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     summary.converged = result.ceres.termination_type == ceres::CONVERGENCE;
     summary.setup_time_s += result.setup_s;
     summary.solve_time_s += result.ceres.total_time_in_seconds;
-    if (options.keep_solver_report) summary.solver_report += result.ceres.FullReport();
+    if (options.keep_solver_report) summary.solver_report += result.report.empty() ? result.ceres.FullReport() : result.report;
     summary.num_images = result.num_images;
     summary.num_points = result.num_points;
     summary.num_observations = result.num_observations;
@@ -1126,8 +1273,12 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     }
     summary.num_camera_groups = static_cast<int>(std::count(used.begin(), used.end(), 1));
   }
-  summary.num_behind_camera_final = CountBehindCamera(*model);
   summary.final_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
+  if (!options.compute_diagnostics) {
+    summary.total_time_s = SecondsSince(start);
+    return summary;
+  }
+  summary.num_behind_camera_final = CountBehindCamera(*model);
   const std::vector<int> per_image = model->ObservationsPerImage();
   for (size_t i = 0; i < model->images.size(); ++i) {
     if (model->images[i].registered && per_image[i] < options.weak_image_min_observations) {

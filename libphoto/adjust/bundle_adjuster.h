@@ -30,6 +30,12 @@ namespace aerotri {
 
 enum class LossType { kNone, kHuber, kCauchy, kTukey };
 enum class LinearSolverChoice { kAuto, kDenseSchur, kSparseSchur, kIterativeSchur };
+// Who solves: Ceres, or aerotri's own dense-Schur Levenberg–Marquardt
+// (dense_schur_solver.h), which takes reprojection-only free networks whose
+// images each have a camera group of their own and whose reduced camera
+// system fits kMaxDenseSchurSize (BAL problems). kAuto: aerotri's solver
+// where it applies, else Ceres.
+enum class BundleEngine { kAuto, kCeres, kAerotri };
 enum class IntrinsicsRefinement {
   kNone,                 // intrinsics held fixed
   kFocal,                // f
@@ -40,6 +46,8 @@ enum class IntrinsicsRefinement {
 
 std::string ToString(LossType loss);
 std::string ToString(LinearSolverChoice solver);
+std::string ToString(BundleEngine engine);
+std::optional<BundleEngine> ParseBundleEngine(const std::string& name);
 std::string ToString(IntrinsicsRefinement refinement);
 std::optional<LossType> ParseLossType(const std::string& name);
 std::optional<LinearSolverChoice> ParseLinearSolver(const std::string& name);
@@ -110,8 +118,13 @@ struct BundleOptions {
   Eigen::Vector3d gnss_lever_arm_m = Eigen::Vector3d::Zero();
 
   LinearSolverChoice linear_solver = LinearSolverChoice::kAuto;
+  BundleEngine engine = BundleEngine::kAuto;
   int num_threads = 0;  // 0: all hardware threads
   int max_iterations = 100;
+  // Stop once the cost is estimated within this fraction of the optimum
+  // (BundleStopRule in dense_schur_solver.h: the last accepted decrease and
+  // its geometric extrapolation); 0: off, only the tolerances below stop.
+  double optimality_gap = 0.0;
   double function_tolerance = 1e-6;
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
@@ -128,6 +141,10 @@ struct BundleOptions {
   // whose widest ray pair is narrower than this angle, are reported as weak.
   int weak_image_min_observations = 20;
   double weak_point_min_angle_deg = 2.0;
+  // The after-solve diagnostics (observations behind their camera, weak
+  // images and points). Off: those counts stay 0; the RMS figures are
+  // computed either way.
+  bool compute_diagnostics = true;
 
   // After the solve, the a-priori covariance of each camera group's refined
   // intrinsics and of their correlation with the camera heights (Ceres
