@@ -2,6 +2,7 @@
 // The aerotri command line: one binary, subcommands. Exit codes: 0 success,
 // 1 runtime or data error, 2 usage error.
 #include <glog/logging.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <iostream>
@@ -22,6 +23,7 @@ int main(int argc, char** argv) {
       "2 usage error."};
   app.name("aerotri");
   ToolContext ctx;
+  ctx.rewrite_progress = ::isatty(STDERR_FILENO) != 0;
   ctx.command_line.assign(argv, argv + argc);
   app.add_flag("--quiet,-q", ctx.quiet, "Silence progress on stderr");
   app.set_version_flag("--version", VersionString());
@@ -65,11 +67,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    return run(ctx);
+    const int code = run(ctx);
+    ctx.CloseLine();
+    return code;
   } catch (const InternalError& e) {
+    ctx.CloseLine();
     std::cerr << "aerotri: " << e.what() << "\n";
     return 1;
   } catch (const Error& e) {
+    ctx.CloseLine();
     std::cerr << "aerotri: error: " << e.what() << "\n";
     return 1;
   } catch (const std::bad_alloc&) {
