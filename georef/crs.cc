@@ -4,6 +4,9 @@
 #include <proj.h>
 
 #include <GeographicLib/UTMUPS.hpp>
+
+#include <algorithm>
+#include <sstream>
 #include <cctype>
 #include <cmath>
 #include <mutex>
@@ -92,6 +95,21 @@ Crs Crs::FromString(const std::string& definition) {
     return Crs(impl);
   }
   std::string text = definition;
+  // OpenDroneMap's "WGS84 UTM 16N" (gcp_list.txt, geo.txt): EPSG:326zz / 327zz.
+  {
+    std::istringstream words(upper);
+    std::string datum, utm, zone_text, rest;
+    if (words >> datum >> utm >> zone_text && !(words >> rest) && datum == "WGS84" && utm == "UTM" &&
+        zone_text.size() >= 2 && (zone_text.back() == 'N' || zone_text.back() == 'S')) {
+      const std::string digits = zone_text.substr(0, zone_text.size() - 1);
+      const bool numeric = digits.size() <= 2 && std::all_of(digits.begin(), digits.end(), ::isdigit);
+      const int zone = numeric ? std::stoi(digits) : 0;
+      if (zone < 1 || zone > 60) {
+        throw CrsError("CRS '" + definition + "': expected a UTM zone from 1 to 60 followed by N or S");
+      }
+      text = "EPSG:" + std::to_string((zone_text.back() == 'N' ? 32600 : 32700) + zone);
+    }
+  }
   if (text.rfind("+proj", 0) == 0 && text.find("+type=crs") == std::string::npos) {
     text += " +type=crs";
   }

@@ -57,7 +57,7 @@ TEST(GpsSources, Egm96AltitudesBecomeEllipsoidalHeights) {
 TEST(GpsSources, CsvWithHeaderSigmasAndClearErrors) {
   testing::TempDir dir;
   std::ofstream(dir / "gps.csv") << "name,lat,lon,alt\n# comment\nA.JPG,46.5,7.5,500\nB.JPG;46.6;7.6;510;0.02;0.05\n";
-  const auto fixes = ReadGpsCsv(dir / "gps.csv", AltitudeReference::kEllipsoid, 3.0, 5.0);
+  const auto fixes = ReadGpsFile(dir / "gps.csv", AltitudeReference::kEllipsoid, 3.0, 5.0);
   ASSERT_EQ(fixes.size(), 2u);
   EXPECT_DOUBLE_EQ(fixes.at("A.JPG").sigma_h_m, 3.0);
   EXPECT_DOUBLE_EQ(fixes.at("B.JPG").sigma_v_m, 0.05);
@@ -75,7 +75,61 @@ TEST(GpsSources, CsvWithHeaderSigmasAndClearErrors) {
            {"A.JPG,46.5,7.5,500,0,1\n", 1, "expected positive sigmas"}}) {
     std::ofstream(dir / "bad.csv") << c.text;
     try {
-      ReadGpsCsv(dir / "bad.csv", AltitudeReference::kEllipsoid, 3.0, 5.0);
+      ReadGpsFile(dir / "bad.csv", AltitudeReference::kEllipsoid, 3.0, 5.0);
+      ADD_FAILURE() << "accepted " << c.text;
+    } catch (const ParseError& e) {
+      EXPECT_EQ(e.line(), c.line) << e.what();
+      EXPECT_NE(std::string(e.what()).find(c.message), std::string::npos) << e.what();
+    }
+  }
+}
+
+// OpenDroneMap's geo.txt: a CRS line, then image x y z [angles] [accuracies].
+// expected: echo "46.5 7.5 0" | cs2cs -d 4 EPSG:4326 EPSG:32632 -> 384902.8374 5150696.3462
+//           echo "46.6 7.6 0" | cs2cs -d 4 EPSG:4326 EPSG:32632 -> 392773.0477 5161667.0443
+TEST(GpsSources, OpenDroneMapGeoTxtInAnyCrs) {
+  testing::TempDir dir;
+  for (const std::string crs : {"EPSG:32632", "WGS84 UTM 32N", "+proj=utm +zone=32 +datum=WGS84 +units=m +no_defs"}) {
+    std::ofstream(dir / "geo.txt") << "\xEF\xBB\xBF" << crs << "\r\n# comment\r\n"
+                                   << "A.JPG 384902.8374 5150696.3462 500\r\n"
+                                   << "B.JPG 392773.0477 5161667.0443 510 0 -90 12.5 0.02 0.05 label\r\n";
+    const auto fixes = ReadGpsFile(dir / "geo.txt", AltitudeReference::kEllipsoid, 3.0, 5.0);
+    ASSERT_EQ(fixes.size(), 2u) << crs;
+    EXPECT_NEAR(fixes.at("A.JPG").position.lat_deg, 46.5, 1e-8) << crs;
+    EXPECT_NEAR(fixes.at("A.JPG").position.lon_deg, 7.5, 1e-8) << crs;
+    EXPECT_DOUBLE_EQ(fixes.at("A.JPG").position.h_m, 500.0);
+    EXPECT_DOUBLE_EQ(fixes.at("A.JPG").sigma_h_m, 3.0);  // no accuracies: the defaults
+    EXPECT_NEAR(fixes.at("B.JPG").position.lat_deg, 46.6, 1e-8);
+    EXPECT_DOUBLE_EQ(fixes.at("B.JPG").sigma_h_m, 0.02);
+    EXPECT_DOUBLE_EQ(fixes.at("B.JPG").sigma_v_m, 0.05);
+    EXPECT_EQ(fixes.at("B.JPG").source, "geo.txt");
+  }
+  // Geographic: x is the longitude (OpenDroneMap's example). A 2D CRS leaves
+  // geo_z an altitude in the reference asked for; a vertical datum converts
+  // through PROJ (cs2cs EPSG:4979 EPSG:4326+5773 gives N = 50.0934 m here).
+  std::ofstream(dir / "geo.txt") << "EPSG:4326\nA.JPG 7.5 46.5 500\n";
+  EXPECT_NEAR(ReadGpsFile(dir / "geo.txt", AltitudeReference::kEgm96, 3.0, 5.0).at("A.JPG").position.h_m, 550.0934,
+              1e-3);
+  std::ofstream(dir / "geo.txt") << "EPSG:32632+5773\nA.JPG 384902.8374 5150696.3462 500\n";
+  const GpsFix compound = ReadGpsFile(dir / "geo.txt", AltitudeReference::kEllipsoid, 3.0, 5.0).at("A.JPG");
+  EXPECT_NEAR(compound.position.h_m, 550.0934, 1e-3);
+  EXPECT_NEAR(compound.position.lat_deg, 46.5, 1e-8);
+
+  struct Case {
+    std::string text;
+    int line;
+    std::string message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"EPSG:32632\nA.JPG 384902.8 5150696.3\n", 2, "aerotri needs each camera's height"},
+           {"EPSG:32632\nA.JPG 384902.8 5150696.3 500 0 0 0 0.02\n", 2, "expected both horz_accuracy"},
+           {"EPSG:32632\nA.JPG 384902.8 north 500\n", 2, "expected a number for geo_y (column 3), got 'north'"},
+           {"EPSG:32632\nA.JPG 384902.8 5150696.3 500 0 0 0 0 0.05\n", 2, "expected positive accuracies"},
+           {"LOCAL\nA.JPG 1 2 3\n", 1, "local engineering frame"},
+           {"EPSG:32632\nA.JPG 1 2 3\nA.JPG 1 2 3\n", 3, "appears twice"}}) {
+    std::ofstream(dir / "bad.txt") << c.text;
+    try {
+      ReadGpsFile(dir / "bad.txt", AltitudeReference::kEllipsoid, 3.0, 5.0);
       ADD_FAILURE() << "accepted " << c.text;
     } catch (const ParseError& e) {
       EXPECT_EQ(e.line(), c.line) << e.what();

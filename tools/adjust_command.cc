@@ -35,9 +35,10 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
   cmd->add_option("--gcp", a->gcp, "Ground control points, OpenDroneMap gcp_list.txt format");
   cmd->add_option("--checkpoints", a->checkpoints,
                   "Check points (same format); never used in the adjustment");
-  cmd->add_option("--gps-csv", a->gps_csv,
-                  "Camera positions name,lat,lon,alt[,sigma_h,sigma_v] (degrees, metres); "
-                  "overrides EXIF");
+  cmd->add_option("--gps-csv,--geo", a->gps_csv,
+                  "Camera positions overriding EXIF: a CSV name,lat,lon,alt[,sigma_h,sigma_v] (degrees, metres), "
+                  "or OpenDroneMap's geo.txt (a CRS line, then image x y z [yaw pitch roll] [horz_accuracy "
+                  "vert_accuracy])");
   cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal sigma (metres)")
       ->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical sigma (metres)")
@@ -123,7 +124,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
              std::to_string(model.images.size()) + " images");
   }
   if (!args.gps_csv.empty()) {
-    const auto csv = ReadGpsCsv(args.gps_csv, reference, args.gps_sigma_h_m, args.gps_sigma_v_m);
+    const auto csv = ReadGpsFile(args.gps_csv, reference, args.gps_sigma_h_m, args.gps_sigma_v_m);
     for (const auto& [name, fix] : csv) gps[name] = fix;
     ctx.Info("GPS CSV: " + std::to_string(csv.size()) + " positions (override EXIF)");
   }

@@ -70,7 +70,10 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
         ->check(CLI::IsMember({"egm96", "ellipsoid"}))->capture_default_str();
     cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
     cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical sigma (metres)")->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--gps-csv", a->gps_csv, "Camera positions name,lat,lon,alt[,sigma_h,sigma_v]; overrides EXIF");
+    cmd->add_option("--gps-csv,--geo", a->gps_csv,
+                    "Camera positions overriding EXIF: a CSV name,lat,lon,alt[,sigma_h,sigma_v] (degrees, metres), "
+                    "or OpenDroneMap's geo.txt (a CRS line, then image x y z [yaw pitch roll] [horz_accuracy "
+                    "vert_accuracy])");
   }
   if (groups & (kIngestOptions | kFeatureOptions | kGeoreferenceOptions)) {
     cmd->add_option("--max-dimension", a->max_dimension,

@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/ingest/gps_sources.h"
 
+#include <Eigen/Core>
+#include <algorithm>
 #include <charconv>
+#include <optional>
 #include <cmath>
 #include <sstream>
 
@@ -71,22 +74,97 @@ std::map<std::string, GpsFix> GpsFromImages(const std::vector<std::string>& imag
   return fixes;
 }
 
-std::map<std::string, GpsFix> ReadGpsCsv(const std::filesystem::path& path,
-                                         AltitudeReference reference, double sigma_h_m,
-                                         double sigma_v_m) {
-  const std::string text = ReadTextFile(path);
-  const std::string p = path.string();
+namespace {
+
+std::string Trimmed(const std::string& line) {
+  const size_t a = line.find_first_not_of(" \t\r");
+  if (a == std::string::npos) return "";
+  return line.substr(a, line.find_last_not_of(" \t\r") - a + 1);
+}
+
+// The CRS of an OpenDroneMap geo.txt, when `line` (the file's first
+// meaningful line) is one: PROJ takes it, and it is not a CSV row or header.
+std::optional<Crs> GeoTxtCrs(const std::string& line) {
+  if (line.find_first_of(",;\t") != std::string::npos) return std::nullopt;
+  std::istringstream words(line);
+  std::string first, second;
+  words >> first >> second;
+  if (!second.empty() && ParseDouble(second)) return std::nullopt;  // "IMG_1.JPG 46.8 ..."
+  try {
+    return Crs::FromString(line);
+  } catch (const CrsError&) {
+    return std::nullopt;
+  }
+}
+
+// geo.txt: `image_name geo_x geo_y geo_z [yaw pitch roll] [horz_accuracy
+// vert_accuracy] [extras...]` in `crs` (OpenDroneMap's documentation).
+std::map<std::string, GpsFix> ReadGeoTxt(const std::vector<std::pair<int, std::string>>& lines, const Crs& crs,
+                                         const std::string& p, int crs_line, AltitudeReference reference,
+                                         double sigma_h_m, double sigma_v_m) {
+  if (crs.IsLocal()) {
+    throw ParseError(p, crs_line, "a local engineering frame has no geodetic meaning for camera GPS positions; "
+                                  "expected a geographic or projected CRS");
+  }
   std::map<std::string, GpsFix> fixes;
-  std::istringstream in(text);
-  std::string line;
-  int number = 0;
+  for (const auto& [number, line] : lines) {
+    std::istringstream in(line);
+    std::vector<std::string> f;
+    for (std::string t; in >> t;) f.push_back(t);
+    if (f.size() < 4) {
+      throw ParseError(p, number, "expected 'image_name geo_x geo_y geo_z [yaw pitch roll] [horz_accuracy "
+                                  "vert_accuracy]' (aerotri needs each camera's height), got " +
+                                      std::to_string(f.size()) + " columns");
+    }
+    static const char* kNames[] = {"", "geo_x", "geo_y", "geo_z", "yaw", "pitch", "roll", "horz_accuracy",
+                                   "vert_accuracy"};
+    double v[9] = {0, 0, 0, 0, 0, 0, 0, sigma_h_m, sigma_v_m};
+    // Columns 5-9 are numbers when present; a 10th and beyond are extras.
+    const size_t numeric = std::min<size_t>(f.size(), 9);
+    for (size_t i = 1; i < numeric; ++i) {
+      const auto value = ParseDouble(f[i]);
+      if (!value) {
+        throw ParseError(p, number, std::string("expected a number for ") + kNames[i] + " (column " +
+                                        std::to_string(i + 1) + "), got '" + f[i] + "'");
+      }
+      v[i] = *value;
+    }
+    if (numeric == 8) {
+      throw ParseError(p, number, "expected both horz_accuracy and vert_accuracy (columns 8 and 9), got only one");
+    }
+    if (!(v[7] > 0.0) || !(v[8] > 0.0)) {
+      throw ParseError(p, number, "expected positive accuracies (m), got " + f[7] + ", " + f[8]);
+    }
+    Geodetic g;
+    try {
+      g = crs.ToGeodetic(Eigen::Vector3d(v[1], v[2], v[3]));
+    } catch (const CrsError& e) {
+      throw ParseError(p, number, std::string("cannot convert the position to WGS84: ") + e.what());
+    }
+    if (!std::isfinite(g.lat_deg) || !std::isfinite(g.lon_deg) || std::abs(g.lat_deg) > 90.0) {
+      throw ParseError(p, number, "the position " + f[1] + " " + f[2] + " is not a place on Earth in " + crs.Name());
+    }
+    if (fixes.count(f[0])) throw ParseError(p, number, "image '" + f[0] + "' appears twice");
+    GpsFix fix;
+    // A CRS with a vertical datum gives ellipsoidal heights through PROJ; a
+    // 2D one leaves geo_z an altitude in the --gps-altitude reference.
+    fix.position = {g.lat_deg, g.lon_deg,
+                    crs.HasVerticalDatum() ? g.h_m : EllipsoidalHeight(g.lat_deg, g.lon_deg, v[3], reference)};
+    fix.sigma_h_m = v[7];
+    fix.sigma_v_m = v[8];
+    fix.source = "geo.txt";
+    fixes[f[0]] = fix;
+  }
+  return fixes;
+}
+
+std::map<std::string, GpsFix> ReadCsvLines(const std::vector<std::pair<int, std::string>>& lines,
+                                              const std::string& p, AltitudeReference reference, double sigma_h_m,
+                                              double sigma_v_m) {
+  std::map<std::string, GpsFix> fixes;
   bool first = true;
-  while (std::getline(in, line)) {
-    ++number;
-    const size_t hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
+  for (const auto& [number, line] : lines) {
     const std::vector<std::string> f = SplitFields(line);
-    if (f.empty()) continue;
     if (first && f.size() >= 2 && !ParseDouble(f[1])) {
       first = false;
       continue;  // header
@@ -124,6 +202,35 @@ std::map<std::string, GpsFix> ReadGpsCsv(const std::filesystem::path& path,
     fixes[f[0]] = fix;
   }
   return fixes;
+}
+
+}  // namespace
+
+std::map<std::string, GpsFix> ReadGpsFile(const std::filesystem::path& path, AltitudeReference reference,
+                                          double sigma_h_m, double sigma_v_m) {
+  std::string text = ReadTextFile(path);
+  if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);  // a UTF-8 byte-order mark
+  for (size_t k = 0; k < text.size(); ++k) {                   // CR alone ends a line too
+    if (text[k] == '\r' && (k + 1 == text.size() || text[k + 1] != '\n')) text[k] = '\n';
+  }
+  std::vector<std::pair<int, std::string>> lines;  // (line number, content without comment)
+  std::istringstream in(text);
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const size_t hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    line = Trimmed(line);
+    if (!line.empty()) lines.emplace_back(number, line);
+  }
+  const std::string p = path.string();
+  if (!lines.empty()) {
+    if (const auto crs = GeoTxtCrs(lines.front().second)) {
+      const int crs_line = lines.front().first;
+      lines.erase(lines.begin());
+      return ReadGeoTxt(lines, *crs, p, crs_line, reference, sigma_h_m, sigma_v_m);
+    }
+  }
+  return ReadCsvLines(lines, p, reference, sigma_h_m, sigma_v_m);
 }
 
 }  // namespace aerotri

@@ -1,12 +1,22 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
-// Where camera GPS positions come from: the images' EXIF, or a CSV of
-// positions and sigmas that overrides EXIF.
+// Where camera GPS positions come from: the images' EXIF, or a file of
+// positions and sigmas that overrides EXIF, in either of two formats:
 //
 // CSV: one line per image, `name,lat,lon,alt[,sigma_h,sigma_v]` (degrees,
 // metres; commas, semicolons, tabs or spaces separate fields). '#' starts a
 // comment; a first line starting with a non-numeric second field is a header.
+//
+// OpenDroneMap's geo.txt: a first line naming the CRS (EPSG:4326, a PROJ
+// string, a WKT or "WGS84 UTM 16N"), then `image_name geo_x geo_y geo_z
+// [yaw pitch roll] [horz_accuracy vert_accuracy] [extras...]` (geographic
+// CRSs: x is the longitude). Angles are read and not used; accuracies (m)
+// become the fix's sigmas. geo_z is ellipsoidal when the CRS has a vertical
+// datum (e.g. EPSG:32616+5773 gives EGM96 heights converted by PROJ), else an
+// altitude in the given reference, as EXIF altitudes are.
+//
+// Either way a UTF-8 byte-order mark and any line ending are accepted.
 
 #include <filesystem>
 #include <map>
@@ -26,8 +36,7 @@ std::map<std::string, GpsFix> GpsFromImages(const std::vector<std::string>& imag
                                             double sigma_v_m, std::vector<std::string>* warnings);
 
 // Throws ParseError (file:line: expected ..., got ...) or IoError.
-std::map<std::string, GpsFix> ReadGpsCsv(const std::filesystem::path& path,
-                                         AltitudeReference reference, double sigma_h_m,
-                                         double sigma_v_m);
+std::map<std::string, GpsFix> ReadGpsFile(const std::filesystem::path& path, AltitudeReference reference,
+                                          double sigma_h_m, double sigma_v_m);
 
 }  // namespace aerotri

@@ -67,7 +67,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
     throw InvalidArgument(o.images_dir.string() + ": no images (.jpg, .jpeg, .tif, .tiff) found");
   }
   std::map<std::string, GpsFix> csv;
-  if (!o.gps_csv.empty()) csv = ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
+  if (!o.gps_csv.empty()) csv = ReadGpsFile(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
   // CSV names are matched to file names exactly: one that matches nothing is
   // said, and a file that matches no photo at all is an error, not ignored.
   std::vector<std::string> unmatched;

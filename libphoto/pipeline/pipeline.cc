@@ -477,7 +477,7 @@ void ValidateInputs(const PipelineOptions& o) {
   }
   if (!o.images_dir.empty()) IngestStageOptions(o).Check();
   if (!o.georef.output_crs.empty()) Crs::FromString(o.georef.output_crs);  // CrsError names it
-  if (!o.gps_csv.empty()) ReadGpsCsv(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
+  if (!o.gps_csv.empty()) ReadGpsFile(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
   // Control and check files: readable, their CRS known to PROJ, their images
   // in the folder (a name that is not is a warning: that line is skipped).
   std::set<std::string> photos;

@@ -71,6 +71,19 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
         << std::setprecision(8) << alt << std::setprecision(12) << "\n";
   }
   WriteTextFileAtomically(dir / "gps.csv", csv.str());
+  // The same fixes as OpenDroneMap's geo.txt, in the output CRS: x y and the
+  // EGM96 altitude (a 2D CRS), no angles, the fixes' sigmas as accuracies.
+  {
+    std::ostringstream geo;
+    geo << options.georef.crs << "\n" << std::fixed << std::setprecision(4);
+    for (const auto& [name, fix] : scene.gps) {
+      const Eigen::Vector3d xy = crs.FromGeodetic(fix.position);
+      const double z = crs.HasVerticalDatum() ? xy.z() : egm_altitude[name];
+      geo << name << " " << xy.x() << " " << xy.y() << " " << z << " 0 0 0 " << fix.sigma_h_m << " "
+          << fix.sigma_v_m << "\n";
+    }
+    WriteTextFileAtomically(dir / "geo.txt", geo.str());
+  }
 
   // The tie-point model in an arbitrary frame: what another tool exports.
   {

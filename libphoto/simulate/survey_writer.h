@@ -9,6 +9,8 @@
 //                        convention: integers at pixel centres)
 //   checkpoints.txt      check points, same format
 //   gps.csv              the same noisy GPS as the EXIF (name,lat,lon,alt)
+//   geo.txt              the same again as OpenDroneMap's geo.txt (output
+//                        CRS, EGM96 altitudes for a 2D CRS, accuracies)
 //   model/               the tie-point model in an arbitrary frame and scale
 //                        (COLMAP text), as another tool would export it
 //   truth/model/         exact cameras and points in ENU (COLMAP text)
