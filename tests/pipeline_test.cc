@@ -177,7 +177,10 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
   EXPECT_EQ(html.find("src='http"), std::string::npos);
   EXPECT_EQ(html.find("href='http"), std::string::npos);
   for (const char* needle : {"<svg", "data:image/png;base64,", "CHK1", "GCP1", "ASPRS", "Check points",
-                             "Camera positions against GPS", "Reprojection error per image", "Coverage"}) {
+                             "Camera positions against GPS", "Reprojection error per image", "Coverage",
+                             "tested to meet ASPRS", "check points:</b> ASPRS 2023 asks for at least 30",
+                             "<h2>Camera calibration</h2>", "radial</tspan>", "<h2>Tie points</h2>", "height (m)",
+                             "points/m&sup2;", "<h2>Processing</h2>", "@media print"}) {
     EXPECT_NE(html.find(needle), std::string::npos) << needle;
   }
 }

@@ -137,6 +137,7 @@ struct RunArgs {
   std::string output;
   AdjustmentPolicyArgs policy = SurveyRunPolicy();  // of the georeferenced adjustment
   bool keep_going = false;
+  bool cleanup = false;
   bool force = false;
   int threads = 0;
   std::string gps_altitude = "egm96";

@@ -338,6 +338,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   AEROTRI_CHECK(model != nullptr);
   model->Validate();
   GeoreferenceReport report;
+  report.initial_cameras = model->cameras;
   ReportProgress(options.progress, 0.0, "reading control");
   // The start of every leave-one-out adjustment.
   std::optional<SparseModel> start;

@@ -189,6 +189,9 @@ struct GeoreferenceReport {
   std::string refinement_reason;  // why
   DomeTest dome;
   BundleSummary bundle;  // bundle.gps_offset_m: the estimated offset
+  // The camera groups' intrinsics as they entered the adjustment (from the
+  // reconstruction, or the calibration file): the report's "initial" values.
+  std::vector<Camera> initial_cameras;
   std::vector<GroundPointResult> control;
   std::vector<GroundPointResult> check;
   AccuracyStats control_stats;

@@ -3,6 +3,7 @@
 #include <gdal_utils.h>
 #include <gdal_priv.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -93,40 +94,88 @@ void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double re
            {"cog", o.cog}};
 }
 
-// PNG bytes of a hillshade of the DSM, at most max_size pixels wide.
-std::string HillshadePng(const fs::path& dsm, int max_size) {
+// A preview of the DSM, at most max_size pixels wide: elevation colours
+// (2nd to 98th percentile of the heights) shaded by a multidirectional
+// hillshade, nodata white; with what its legend and scale bar need.
+struct DsmPreview {
+  std::string png;
+  json info;
+};
+
+DsmPreview DsmPreviewPng(const fs::path& dsm, int max_size) {
   GDALAllRegister();
+  DsmPreview out;
   GDALDatasetH src = GDALOpen(dsm.string().c_str(), GA_ReadOnly);
-  if (!src) return {};
+  if (!src) return out;
   const int w = GDALGetRasterXSize(src), h = GDALGetRasterYSize(src);
+  double gt[6] = {0, 1, 0, 0, 0, 1};
+  GDALGetGeoTransform(src, gt);
   const double s = std::min(1.0, static_cast<double>(max_size) / std::max(w, h));
-  const std::string sw = std::to_string(std::max(1, static_cast<int>(w * s)));
-  const std::string sh = std::to_string(std::max(1, static_cast<int>(h * s)));
+  const int pw = std::max(1, static_cast<int>(w * s)), ph = std::max(1, static_cast<int>(h * s));
+  const std::string sw = std::to_string(pw), sh = std::to_string(ph);
   const char* tr_args[] = {"-of", "MEM", "-outsize", sw.c_str(), sh.c_str(), "-r", "average", nullptr};
   GDALTranslateOptions* tr = GDALTranslateOptionsNew(const_cast<char**>(tr_args), nullptr);
   GDALDatasetH small = GDALTranslate("", src, tr, nullptr);
   GDALTranslateOptionsFree(tr);
   GDALClose(src);
-  if (!small) return {};
+  if (!small) return out;
   const char* hs_args[] = {"-of", "MEM", "-compute_edges", "-multidirectional", nullptr};
   GDALDEMProcessingOptions* hs = GDALDEMProcessingOptionsNew(const_cast<char**>(hs_args), nullptr);
   GDALDatasetH shade = GDALDEMProcessing("", small, "hillshade", nullptr, hs, nullptr);
   GDALDEMProcessingOptionsFree(hs);
+  std::vector<float> z(static_cast<size_t>(pw) * ph);
+  std::vector<unsigned char> light(z.size(), 255);
+  GDALRasterBandH zb = GDALGetRasterBand(small, 1);
+  int has_nodata = 0;
+  const double nodata = GDALGetRasterNoDataValue(zb, &has_nodata);
+  bool ok = GDALRasterIO(zb, GF_Read, 0, 0, pw, ph, z.data(), pw, ph, GDT_Float32, 0, 0) == CE_None;
+  if (shade) {
+    ok = ok && GDALRasterIO(GDALGetRasterBand(shade, 1), GF_Read, 0, 0, pw, ph, light.data(), pw, ph, GDT_Byte, 0,
+                            0) == CE_None;
+    GDALClose(shade);
+  }
   GDALClose(small);
-  if (!shade) return {};
-  const std::string vsi = "/vsimem/aerotri_hillshade.png";
-  const char* png_args[] = {"-of", "PNG", nullptr};
-  GDALTranslateOptions* po = GDALTranslateOptionsNew(const_cast<char**>(png_args), nullptr);
-  GDALDatasetH png = GDALTranslate(vsi.c_str(), shade, po, nullptr);
-  GDALTranslateOptionsFree(po);
-  GDALClose(shade);
-  if (!png) return {};
+  if (!ok) return out;
+  auto valid = [&](float v) { return std::isfinite(v) && !(has_nodata && v == static_cast<float>(nodata)); };
+  std::vector<float> heights;
+  for (float v : z) {
+    if (valid(v)) heights.push_back(v);
+  }
+  if (heights.empty()) return out;
+  std::sort(heights.begin(), heights.end());
+  const double lo = heights[heights.size() * 2 / 100], hi = heights[heights.size() * 98 / 100];
+  const double span = hi > lo ? hi - lo : 1.0;
+  GDALDriverH mem = GDALGetDriverByName("MEM");
+  GDALDatasetH rgb = GDALCreate(mem, "", pw, ph, 3, GDT_Byte, nullptr);
+  std::vector<unsigned char> band(z.size());
+  for (int b = 0; b < 3; ++b) {
+    for (size_t k = 0; k < z.size(); ++k) {
+      if (!valid(z[k])) {
+        band[k] = 255;
+        continue;
+      }
+      // Shade multiplies the colour, lifted so that flat ground keeps it.
+      const double shading = 0.35 + 0.65 * light[k] / 255.0;
+      band[k] = static_cast<unsigned char>(std::clamp(ElevationRampColour((z[k] - lo) / span)[b] * shading, 0.0, 255.0));
+    }
+    GDALRasterIO(GDALGetRasterBand(rgb, b + 1), GF_Write, 0, 0, pw, ph, band.data(), pw, ph, GDT_Byte, 0, 0);
+  }
+  const std::string vsi = "/vsimem/aerotri_dsm_preview.png";
+  GDALDatasetH png = GDALCreateCopy(GDALGetDriverByName("PNG"), vsi.c_str(), rgb, FALSE, nullptr, nullptr, nullptr);
+  GDALClose(rgb);
+  if (!png) return out;
   GDALClose(png);
   vsi_l_offset length = 0;
   GByte* bytes = VSIGetMemFileBuffer(vsi.c_str(), &length, TRUE);
-  std::string out(reinterpret_cast<const char*>(bytes), static_cast<size_t>(length));
+  out.png.assign(reinterpret_cast<const char*>(bytes), static_cast<size_t>(length));
   CPLFree(bytes);
   VSIUnlink((vsi + ".aux.xml").c_str());
+  out.info = {{"width_px", pw},
+              {"height_px", ph},
+              {"metres_per_px", std::abs(gt[1]) * w / pw},
+              {"z_low_m", lo},
+              {"z_high_m", hi},
+              {"z_range", "2nd to 98th percentile of the DSM heights"}};
   return out;
 }
 
@@ -290,7 +339,7 @@ bool RunReportStage(const PipelineOptions& o) {
   }
   const auto start = Clock::now();
   json report = ReadJson(o.workspace / "report.json", "georeference");
-  std::string hillshade;
+  DsmPreview preview;
   if (fs::exists(o.workspace / "dense.json")) {
     const json dense = json::parse(ReadTextFile(o.workspace / "dense.json"));
     if (dense.contains("skipped")) report["dense"] = {{"points", 0}, {"skipped", dense["skipped"]}};
@@ -305,12 +354,13 @@ bool RunReportStage(const PipelineOptions& o) {
     report["dsm"] = dense["dsm"];
     report["dsm"]["check_points"] = DsmAtCheckPoints(report, dsm);
     report["coverage"] = Coverage(ReadColmapText(o.workspace / "georeferenced"), dsm, g);
-    hillshade = HillshadePng(o.workspace / "dsm.tif", 900);
+    preview = DsmPreviewPng(o.workspace / "dsm.tif", 900);
+    if (!preview.png.empty()) report["dsm"]["preview"] = preview.info;
   }
   RecordTiming(o, "report", std::chrono::duration<double>(Clock::now() - start).count());
   report["timings"] = json::parse(ReadTextFile(o.workspace / "timings.json"));
   WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
-  WriteTextFileAtomically(html, RenderHtmlReport(report, hillshade));
+  WriteTextFileAtomically(html, RenderHtmlReport(report, preview.png));
   return true;
 }
 

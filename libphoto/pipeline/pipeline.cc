@@ -527,6 +527,19 @@ void ValidateInputs(const PipelineOptions& o) {
   }
 }
 
+void CleanUpIntermediates(const PipelineOptions& o) {
+  const fs::path depth = o.workspace / "depth";
+  if (!fs::exists(depth)) return;
+  std::uintmax_t bytes = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(depth)) {
+    std::error_code ec;
+    if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
+  }
+  fs::remove_all(depth);
+  Log(o, "cleanup: removed " + depth.string() + " (the dense stage's depth maps, " + std::to_string(bytes >> 20) +
+             " MB); the deliverables, features and matches stay");
+}
+
 std::string RunPipeline(const PipelineOptions& o) {
   ValidateInputs(o);
   RunIngestStage(o);
@@ -542,6 +555,7 @@ std::string RunPipeline(const PipelineOptions& o) {
     RunDenseStage(o);
   }
   RunReportStage(o);
+  if (o.cleanup) CleanUpIntermediates(o);
   return status;
 }
 

@@ -39,6 +39,10 @@ struct PipelineOptions {
   bool force = false;  // redo stages whose product exists
   // Write the deliverables of a failed adjustment too (tagged as failed).
   bool keep_going = false;
+  // After the report, remove the dense stage's depth maps (depth/: about
+  // half of a finished workspace). Features and matches stay: a rerun with a
+  // changed option starts from them.
+  bool cleanup = false;
   int num_threads = 0;
 
   // ingest

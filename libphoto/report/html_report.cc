@@ -42,10 +42,38 @@ std::string Text(const json& j, const char* key, const std::string& fallback = "
   return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : fallback;
 }
 
-// A horizontal bar chart of one or more series per label.
+// Tick values at 1, 2 or 5 times a power of ten covering [lo, hi], about
+// `target` of them: axis labels a reader can use (0.5, 1.0, 1.5, not
+// -9.44, -5.36).
+std::vector<double> NiceTicks(double lo, double hi, int target = 5) {
+  if (!(hi > lo)) hi = lo + 1.0;
+  const double raw = (hi - lo) / std::max(1, target);
+  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
+  double step = magnitude;
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    step = m * magnitude;
+    if (step >= raw) break;
+  }
+  std::vector<double> ticks;
+  for (double v = std::floor(lo / step) * step; v <= hi + 1e-9 * step; v += step) {
+    ticks.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
+  }
+  if (ticks.back() < hi) ticks.push_back(ticks.back() + step);
+  return ticks;
+}
+
+// Decimals that show a tick step exactly (0.25 -> 2, 5 -> 0).
+int DecimalsFor(const std::vector<double>& ticks) {
+  if (ticks.size() < 2) return 2;
+  const double step = ticks[1] - ticks[0];
+  return std::max(0, static_cast<int>(std::ceil(-std::log10(step) - 1e-9)));
+}
+
+// A horizontal bar chart of one or more series per label. `decimals` is how
+// values print in tooltips (0 for counts).
 std::string BarChart(const std::vector<std::string>& labels, const std::vector<std::vector<double>>& series,
                      const std::vector<std::string>& names, const std::vector<std::string>& colours,
-                     const std::string& unit) {
+                     const std::string& unit, int decimals = 3) {
   const int n = static_cast<int>(labels.size());
   if (n == 0) return "<p>No data.</p>";
   double lo = 0.0, hi = 0.0;
@@ -57,13 +85,18 @@ std::string BarChart(const std::vector<std::string>& labels, const std::vector<s
       }
     }
   }
-  if (hi - lo <= 0) hi = lo + 1;
+  const std::vector<double> ticks = NiceTicks(lo, hi);
+  lo = ticks.front();
+  hi = ticks.back();
   const int row = 6 * static_cast<int>(series.size()) + 6, left = 130, width = 520;
-  const int height = n * row + 40;
+  const int height = n * row + 56;
   auto x = [&](double v) { return left + (v - lo) / (hi - lo) * width; };
   std::ostringstream svg;
   svg << "<svg viewBox='0 0 " << left + width + 60 << " " << height << "' class='chart'>";
-  svg << "<line x1='" << x(0) << "' y1='0' x2='" << x(0) << "' y2='" << n * row << "' stroke='#888'/>";
+  for (double t : ticks) {
+    svg << "<line x1='" << x(t) << "' y1='0' x2='" << x(t) << "' y2='" << n * row << "' stroke='"
+        << (t == 0.0 ? "#888" : "#e4e4e4") << "'/>";
+  }
   for (int i = 0; i < n; ++i) {
     const int y = i * row;
     svg << "<text x='" << left - 6 << "' y='" << y + row - 4 << "' text-anchor='end' font-size='9'>"
@@ -74,21 +107,117 @@ std::string BarChart(const std::vector<std::string>& labels, const std::vector<s
       const double a = x(std::min(0.0, v)), b = x(std::max(0.0, v));
       svg << "<rect x='" << a << "' y='" << y + 3 + 6 * s << "' width='" << std::max(0.5, b - a)
           << "' height='5' fill='" << colours[s] << "'><title>" << Escape(labels[i]) << " " << names[s] << ": "
-          << Num(v) << " " << unit << "</title></rect>";
+          << Num(v, decimals) << " " << unit << "</title></rect>";
     }
   }
-  for (int t = 0; t <= 4; ++t) {
-    const double v = lo + (hi - lo) * t / 4.0;
-    svg << "<text x='" << x(v) << "' y='" << n * row + 14 << "' text-anchor='middle' font-size='9'>" << Num(v, 2)
-        << "</text>";
+  const int tick_decimals = DecimalsFor(ticks);
+  for (double t : ticks) {
+    svg << "<text x='" << x(t) << "' y='" << n * row + 14 << "' text-anchor='middle' font-size='9'>"
+        << Num(t, tick_decimals) << "</text>";
   }
+  // The unit under the axis, the legend on a line of its own below it.
   svg << "<text x='" << left + width / 2 << "' y='" << n * row + 30 << "' text-anchor='middle' font-size='10'>"
-      << Escape(unit);
-  for (size_t s = 0; s < names.size(); ++s) {
-    svg << " <tspan fill='" << colours[s] << "'>■ " << Escape(names[s]) << "</tspan>";
+      << Escape(unit) << "</text>";
+  if (names.size() > 1) {
+    svg << "<text x='" << left + width / 2 << "' y='" << n * row + 46 << "' text-anchor='middle' font-size='10'>";
+    for (size_t s = 0; s < names.size(); ++s) {
+      svg << "<tspan fill='" << colours[s] << "'>" << (s ? "   " : "") << "■ " << Escape(names[s]) << "</tspan>";
+    }
+    svg << "</text>";
   }
-  svg << "</text></svg>";
+  svg << "</svg>";
   return svg.str();
+}
+
+// Above this many labels a chart shows the distribution instead of one bar
+// per label: readable on a 500-image survey.
+constexpr int kMaxBars = 60;
+
+// The distribution of one value over many labels: a histogram on nice bins,
+// the median, and the labels of the largest values.
+std::string Distribution(const std::vector<std::string>& labels, const std::vector<double>& values,
+                         const std::string& what, const std::string& unit, int decimals) {
+  std::vector<std::pair<double, std::string>> v;
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (std::isfinite(values[i])) v.emplace_back(values[i], labels[i]);
+  }
+  if (v.empty()) return "<p>No data.</p>";
+  std::sort(v.begin(), v.end());
+  const std::vector<double> edges = NiceTicks(v.front().first, v.back().first, 12);
+  std::vector<int> count(edges.size() - 1, 0);
+  for (const auto& [value, label] : v) {
+    size_t b = std::upper_bound(edges.begin(), edges.end(), value) - edges.begin();
+    b = std::min(count.size(), std::max<size_t>(1, b)) - 1;
+    ++count[b];
+  }
+  const int cmax = *std::max_element(count.begin(), count.end());
+  const int left = 40, width = 600, height = 160;
+  const double bw = static_cast<double>(width) / count.size();
+  std::ostringstream svg;
+  svg << "<svg viewBox='0 0 " << left + width + 20 << " " << height + 40 << "' class='chart'>";
+  const int d = DecimalsFor(edges);
+  for (size_t b = 0; b < count.size(); ++b) {
+    const double h = cmax > 0 ? static_cast<double>(height) * count[b] / cmax : 0.0;
+    svg << "<rect x='" << left + b * bw + 1 << "' y='" << height - h << "' width='" << bw - 2 << "' height='" << h
+        << "' fill='#a6c'><title>" << count[b] << " " << Escape(what) << " from " << Num(edges[b], d) << " to "
+        << Num(edges[b + 1], d) << " " << Escape(unit) << "</title></rect>";
+  }
+  for (size_t e = 0; e < edges.size(); e += std::max<size_t>(1, edges.size() / 7)) {
+    svg << "<text x='" << left + e * bw << "' y='" << height + 14 << "' text-anchor='middle' font-size='9'>"
+        << Num(edges[e], d) << "</text>";
+  }
+  svg << "<text x='" << left - 4 << "' y='10' text-anchor='end' font-size='9'>" << cmax << "</text>"
+      << "<text x='" << left + width / 2 << "' y='" << height + 32 << "' text-anchor='middle' font-size='10'>"
+      << Escape(unit) << " (bars: number of " << Escape(what) << ")</text></svg>";
+  std::ostringstream h;
+  h << svg.str() << "<p>" << v.size() << " " << Escape(what) << ": median " << Num(v[v.size() / 2].first, decimals)
+    << " " << Escape(unit) << "; largest: ";
+  for (size_t k = 0; k < std::min<size_t>(5, v.size()); ++k) {
+    const auto& [value, label] = v[v.size() - 1 - k];
+    h << (k ? ", " : "") << Escape(label) << " " << Num(value, decimals);
+  }
+  h << ".</p>";
+  return h.str();
+}
+
+// One bar per label when they fit, the distribution otherwise.
+std::string PerLabelChart(const std::vector<std::string>& labels, const std::vector<double>& values,
+                          const std::string& name, const std::string& colour, const std::string& what,
+                          const std::string& unit, int decimals) {
+  if (static_cast<int>(labels.size()) > kMaxBars) return Distribution(labels, values, what, unit, decimals);
+  return BarChart(labels, {values}, {name}, {colour}, unit, decimals);
+}
+
+// The ASPRS 2023 (Edition 2) accuracy statement in its words, the class
+// being the tested RMSE rounded up to the half centimetre; and the warning
+// that fewer than 30 check points are below its minimum for a statement.
+std::string AsprsStatement(const json& asprs, int check_points) {
+  const json& e = asprs.value("edition_2023", json::object());
+  const double h = Get(e, "rmse_h_m"), v = Get(e, "rmse_v_m");
+  if (!std::isfinite(h) && !std::isfinite(v)) return "";
+  auto cls = [](double rmse_m) { return std::ceil(rmse_m * 100.0 / 0.5 - 1e-9) * 0.5; };
+  std::ostringstream out;
+  out << "<p class='asprs'>";
+  if (std::isfinite(h)) {
+    out << "This data set was tested to meet ASPRS Positional Accuracy Standards for Digital Geospatial Data, "
+           "Edition 2 (2023) for a "
+        << Num(cls(h), 1) << " cm RMSE<sub>H</sub> horizontal positional accuracy class. The tested horizontal "
+        << "positional accuracy was found to be RMSE<sub>H</sub> = " << Num(h * 100.0, 1) << " cm. ";
+  }
+  if (std::isfinite(v)) {
+    out << "This data set was tested to meet ASPRS Positional Accuracy Standards for Digital Geospatial Data, "
+           "Edition 2 (2023) for a "
+        << Num(cls(v), 1) << " cm RMSE<sub>V</sub> vertical positional accuracy class. The tested vertical "
+        << "positional accuracy was found to be RMSE<sub>V</sub> = " << Num(v * 100.0, 1)
+        << " cm in non-vegetated terrain.";
+  }
+  out << "</p>";
+  if (check_points < 30) {
+    out << "<p class='warn'><b>Only " << check_points
+        << " check points:</b> ASPRS 2023 asks for at least 30 before accuracy is stated as tested; these "
+           "figures are indicative, not a compliance statement.</p>";
+  }
+  return out.str();
 }
 
 std::string PointTable(const json& group, const char* title) {
@@ -225,7 +354,7 @@ std::string SurveyMap(const json& r) {
   auto px = [&](double x) { return pad + ox + (x - x0) * s; };
   auto py = [&](double y) { return size - pad - oy - (y - y0) * s; };
   std::ostringstream svg;
-  svg << "<svg viewBox='0 0 " << size << " " << size + 40 << "' class='map'>"
+  svg << "<svg viewBox='0 0 " << size << " " << size + 58 << "' class='map'>"
       << "<defs><marker id='ah' markerWidth='6' markerHeight='6' refX='5' refY='3' orient='auto'>"
       << "<path d='M0,0 L6,3 L0,6 z' fill='#c00'/></marker></defs>"
       << "<rect x='0' y='0' width='" << size << "' height='" << size << "' fill='#f7f7f2' stroke='#ccc'/>";
@@ -254,8 +383,9 @@ std::string SurveyMap(const json& r) {
         << size + 12 << "' stroke='#c00' stroke-width='2'/><text x='" << size / 2 << "' y='" << size + 28
         << "' font-size='10' fill='#c00'>1 cm (residual vectors)</text>";
   }
-  svg << "<text x='" << size - pad << "' y='" << size + 28
-      << "' font-size='10' text-anchor='end'><tspan fill='#4a7'>● camera</tspan> <tspan fill='#d80'>▲ control</tspan> "
+  // The symbols' legend on a line of its own, under the two scale bars.
+  svg << "<text x='" << pad << "' y='" << size + 50
+      << "' font-size='10'><tspan fill='#4a7'>● camera</tspan>   <tspan fill='#d80'>▲ control</tspan>   "
          "<tspan fill='#06c'>▲ check</tspan></text></svg>";
   return svg.str();
 }
@@ -268,7 +398,8 @@ std::string CoverageMap(const json& cov) {
   for (int c : counts) cmax = std::max(cmax, c);
   const double cell = 400.0 / std::max(nx, ny);
   std::ostringstream svg;
-  svg << "<svg viewBox='0 0 " << nx * cell + 120 << " " << ny * cell << "' class='map'>";
+  const double lx = nx * cell + 12, top = 44, bar = std::max(60.0, std::min(200.0, ny * cell - 80));
+  svg << "<svg viewBox='0 0 " << nx * cell + 120 << " " << std::max(ny * cell, top + bar + 26) << "' class='map'>";
   for (int y = 0; y < ny; ++y) {
     for (int x = 0; x < nx; ++x) {
       const int c = counts[static_cast<size_t>(y) * nx + x];
@@ -280,10 +411,180 @@ std::string CoverageMap(const json& cov) {
           << ")'><title>" << c << " images</title></rect>";
     }
   }
-  svg << "<text x='" << nx * cell + 10 << "' y='20' font-size='11'>images per</text><text x='" << nx * cell + 10
-      << "' y='34' font-size='11'>ground point</text><text x='" << nx * cell + 10 << "' y='54' font-size='11'>max "
-      << cmax << "</text></svg>";
+  // Colour scale: the same ramp as the cells, 1 image at the bottom, the
+  // largest count at the top; 0 (a gap) in its own red.
+  svg << "<text x='" << lx << "' y='14' font-size='11'>images per</text><text x='" << lx
+      << "' y='28' font-size='11'>ground point</text>";
+  const int steps = 20;
+  for (int k = 0; k < steps; ++k) {
+    const double t = 1.0 - static_cast<double>(k) / (steps - 1);
+    svg << "<rect x='" << lx << "' y='" << top + k * bar / steps << "' width='14' height='" << bar / steps + 0.5
+        << "' fill='rgb(" << static_cast<int>(255 * (1 - t)) << "," << static_cast<int>(80 + 150 * t) << ",90)'/>";
+  }
+  svg << "<text x='" << lx + 18 << "' y='" << top + 8 << "' font-size='10'>" << cmax << "</text>"
+      << "<text x='" << lx + 18 << "' y='" << top + bar << "' font-size='10'>1</text>"
+      << "<rect x='" << lx << "' y='" << top + bar + 10 << "' width='14' height='10' fill='rgb(220,60,60)'/>"
+      << "<text x='" << lx + 18 << "' y='" << top + bar + 19 << "' font-size='10'>0 (gap)</text></svg>";
   return svg.str();
+}
+
+// The DSM preview with its elevation legend and a scale bar, scaling with
+// the page (one SVG, the image inside it).
+std::string DsmFigure(const std::string& png, const json& preview) {
+  const double w = Get(preview, "width_px", 600), hgt = Get(preview, "height_px", 400);
+  const double mpp = Get(preview, "metres_per_px", NAN);
+  std::ostringstream svg;
+  svg << "<svg class='dsm' viewBox='0 0 " << w + 110 << " " << hgt + 44 << "'>"
+      << "<image width='" << w << "' height='" << hgt << "' href='data:image/png;base64," << Base64(png) << "'/>"
+      << "<rect width='" << w << "' height='" << hgt << "' fill='none' stroke='#ccc'/>";
+  if (std::isfinite(mpp) && mpp > 0) {
+    // A scale bar of a round length near a quarter of the width.
+    const std::vector<double> t = NiceTicks(0.0, 0.25 * w * mpp, 1);
+    const double metres = t.size() > 1 ? t[1] : 0.25 * w * mpp;
+    const double len = metres / mpp;
+    svg << "<rect x='10' y='" << hgt + 12 << "' width='" << len / 2 << "' height='6' fill='#000'/>"
+        << "<rect x='" << 10 + len / 2 << "' y='" << hgt + 12 << "' width='" << len / 2
+        << "' height='6' fill='#fff' stroke='#000'/>"
+        << "<text x='10' y='" << hgt + 34 << "' font-size='11'>0</text><text x='" << 10 + len << "' y='" << hgt + 34
+        << "' font-size='11' text-anchor='middle'>" << Num(metres, DecimalsFor(t)) << " m</text>";
+  }
+  const double lo = Get(preview, "z_low_m"), hi = Get(preview, "z_high_m");
+  if (std::isfinite(lo) && std::isfinite(hi)) {
+    const double x = w + 14, top = 20, bar = std::min(hgt - 40, 220.0);
+    svg << "<text x='" << x << "' y='12' font-size='11'>height (m)</text>";
+    const int steps = 32;
+    for (int k = 0; k < steps; ++k) {
+      const auto c = ElevationRampColour(1.0 - (k + 0.5) / steps);
+      svg << "<rect x='" << x << "' y='" << top + k * bar / steps << "' width='16' height='" << bar / steps + 0.5
+          << "' fill='rgb(" << static_cast<int>(c[0]) << "," << static_cast<int>(c[1]) << ","
+          << static_cast<int>(c[2]) << ")'/>";
+    }
+    const std::vector<double> ticks = NiceTicks(lo, hi, 5);
+    for (double v : ticks) {
+      if (v < lo || v > hi) continue;
+      const double y = top + (hi - v) / (hi - lo > 0 ? hi - lo : 1.0) * bar;
+      svg << "<line x1='" << x + 16 << "' y1='" << y << "' x2='" << x + 20 << "' y2='" << y
+          << "' stroke='#000'/><text x='" << x + 23 << "' y='" << y + 4 << "' font-size='10'>"
+          << Num(v, DecimalsFor(ticks)) << "</text>";
+    }
+  }
+  svg << "</svg>";
+  return svg.str();
+}
+
+// Initial and adjusted intrinsics with their sigmas, and the lens
+// distortion along the image diagonal.
+std::string CameraCalibration(const json& r) {
+  const json& adj = r.value("adjustment", json::object());
+  const json& groups = adj.value("intrinsics", json::array());
+  if (groups.empty()) return "";
+  std::ostringstream h;
+  h << "<h2>Camera calibration</h2><p>Refined: " << Escape(Text(adj, "refined_intrinsics", "–")) << " ("
+    << Escape(Text(adj.value("refinement", json::object()), "reason", "")) << "). Initial: as the adjustment "
+    << "started (from the reconstruction or the calibration file). Pixels at the working resolution, (0, 0) at "
+       "the centre of the top-left pixel.</p>";
+  for (const auto& g : groups) {
+    json sigma = json::object();
+    for (const auto& p : adj.value("intrinsics_precision", json::array())) {
+      if (p.value("camera", -1) == g.value("camera", -2) && p.contains("sigma")) sigma = p["sigma"];
+    }
+    h << "<h3>Camera " << g.value("camera", 0) << " (" << Escape(Text(g, "model", "")) << ", "
+      << g.value("width", 0) << " x " << g.value("height", 0) << " px)</h3><table><tr><th>parameter</th>"
+      << "<th>initial</th><th>adjusted</th><th>change</th><th>&sigma; (a priori)</th></tr>";
+    const json& params = g.value("params", json::object());
+    const json& initial = g.value("initial_params", json::object());
+    // The usual order (f, principal point, radial, tangential), then any other.
+    std::vector<std::string> names;
+    for (const char* n : {"f", "fx", "fy", "cx", "cy", "k1", "k2", "k3", "p1", "p2"}) {
+      if (params.contains(n)) names.push_back(n);
+    }
+    for (auto it = params.begin(); it != params.end(); ++it) {
+      if (std::find(names.begin(), names.end(), it.key()) == names.end()) names.push_back(it.key());
+    }
+    for (const std::string& name : names) {
+      const double v = Get(params, name.c_str());
+      const bool pixels = name == "f" || name == "fx" || name == "fy" || name == "cx" || name == "cy";
+      const int d = pixels ? 2 : 6;
+      const double v0 = Get(initial, name.c_str());
+      h << "<tr><td>" << Escape(name) << (pixels ? " (px)" : "") << "</td><td>" << Num(v0, d) << "</td><td>"
+        << Num(v, d) << "</td><td>" << Num(v - v0, d) << "</td><td>"
+        << (sigma.contains(name) ? Num(Get(sigma, name.c_str()), d) : std::string("held")) << "</td></tr>";
+    }
+    h << "</table>";
+    const json& curve = g.value("distortion_curve", json::object());
+    const auto radius = curve.value("radius_px", std::vector<double>{});
+    const auto radial = curve.value("radial_px", std::vector<double>{});
+    const auto tangential = curve.value("tangential_px", std::vector<double>{});
+    if (radius.size() < 2 || radial.size() != radius.size() || tangential.size() != radius.size()) continue;
+    double lo = 0.0, hi = 0.0;
+    for (size_t k = 0; k < radius.size(); ++k) {
+      lo = std::min({lo, radial[k], tangential[k]});
+      hi = std::max({hi, radial[k], tangential[k]});
+    }
+    const std::vector<double> yt = NiceTicks(lo, hi, 5), xt = NiceTicks(0.0, radius.back(), 6);
+    const double left = 50, width = 520, height = 200;
+    auto X = [&](double v) { return left + v / xt.back() * width; };
+    auto Y = [&](double v) { return 10 + (yt.back() - v) / (yt.back() - yt.front()) * height; };
+    std::ostringstream svg;
+    svg << "<svg class='chart' viewBox='0 0 " << left + width + 20 << " " << height + 64 << "'>";
+    for (double t : yt) {
+      svg << "<line x1='" << left << "' x2='" << left + width << "' y1='" << Y(t) << "' y2='" << Y(t) << "' stroke='"
+          << (t == 0.0 ? "#888" : "#e4e4e4") << "'/><text x='" << left - 4 << "' y='" << Y(t) + 3
+          << "' font-size='9' text-anchor='end'>" << Num(t, DecimalsFor(yt)) << "</text>";
+    }
+    for (double t : xt) {
+      svg << "<text x='" << X(t) << "' y='" << height + 24 << "' font-size='9' text-anchor='middle'>"
+          << Num(t, DecimalsFor(xt)) << "</text>";
+    }
+    for (const auto& [values, colour] : {std::make_pair(&radial, "#c33"), std::make_pair(&tangential, "#36c")}) {
+      svg << "<polyline fill='none' stroke='" << colour << "' stroke-width='2' points='";
+      for (size_t k = 0; k < radius.size(); ++k) svg << X(radius[k]) << "," << Y((*values)[k]) << " ";
+      svg << "'/>";
+    }
+    svg << "<text x='" << left + width / 2 << "' y='" << height + 40
+        << "' font-size='10' text-anchor='middle'>distance from the principal point along the diagonal (px)</text>"
+        << "<text x='" << left + width / 2 << "' y='" << height + 56 << "' font-size='10' text-anchor='middle'>"
+        << "<tspan fill='#c33'>■ radial</tspan>   <tspan fill='#36c'>■ tangential</tspan> displacement (px)"
+        << "</text></svg>";
+    h << svg.str();
+  }
+  return h.str();
+}
+
+// Tie points by the number of images measuring them.
+std::string TrackTable(const json& r) {
+  const json& t = r.value("adjustment", json::object()).value("tracks", json::object());
+  if (!t.contains("by_length")) return "";
+  std::ostringstream h;
+  h << "<h2>Tie points</h2><p>" << t.value("tie_points", 0) << " tie points, measured in " << Num(Get(t, "mean_length"), 2)
+    << " images on average (median " << t.value("median_length", 0) << ", at most " << t.value("max_length", 0)
+    << ").</p><table><tr><th>images per point</th>";
+  std::vector<std::string> keys;
+  for (int n = 2; n < 10; ++n) keys.push_back(std::to_string(n));
+  keys.push_back("10+");
+  for (const auto& k : keys) h << "<th>" << k << "</th>";
+  h << "</tr><tr><td>tie points</td>";
+  for (const auto& k : keys) h << "<td>" << t["by_length"].value(k, 0) << "</td>";
+  h << "</tr></table>";
+  return h.str();
+}
+
+// Wall time and peak memory of every stage (timings.json).
+std::string Timings(const json& r) {
+  const json& t = r.value("timings", json::object());
+  if (!t.is_object() || t.empty()) return "";
+  static const char* kOrder[] = {"ingest", "features", "match", "reconstruct", "georeference", "dense", "report"};
+  std::ostringstream h;
+  h << "<h2>Processing</h2><table><tr><th>stage</th><th>time (s)</th><th>peak memory (MB)</th></tr>";
+  double total = 0.0;
+  for (const char* stage : kOrder) {
+    if (!t.contains(stage)) continue;
+    total += Get(t[stage], "wall_s", 0.0);
+    h << "<tr><td>" << stage << "</td><td>" << Num(Get(t[stage], "wall_s"), 1) << "</td><td>"
+      << Num(Get(t[stage], "peak_rss_mb"), 0) << "</td></tr>";
+  }
+  h << "<tr class='total'><td>total</td><td>" << Num(total, 1) << "</td><td></td></tr></table>";
+  return h.str();
 }
 
 }  // namespace
@@ -312,7 +613,7 @@ std::string Base64(const std::string& bytes) {
   return out;
 }
 
-std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
+std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {  // hillshade_png: the DSM preview
   std::ostringstream h;
   h << "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>aerotri survey report</title><style>"
        "body{font-family:sans-serif;margin:2em auto;max-width:1000px;color:#222}"
@@ -322,7 +623,15 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
        "background:#f4f4f4}.cards{display:flex;flex-wrap:wrap;gap:10px}.card{border:1px solid #ccc;"
        "border-radius:6px;padding:8px 14px;min-width:140px}.card b{display:block;font-size:20px}"
        "svg.chart{width:100%;max-width:720px}svg.map{width:100%;max-width:600px}.warn{color:#a50}"
-       "img.dsm{max-width:100%;border:1px solid #ccc}</style></head><body>";
+       "img.dsm{max-width:100%;border:1px solid #ccc}svg.dsm{width:100%;max-width:900px}"
+       "p.asprs{background:#f4f8f4;border-left:4px solid #4a7;padding:6px 10px}"
+       // Print (the browser's print-to-PDF): full width, no page breaks inside
+       // a figure or table, headings kept with what follows.
+       "@media print{@page{size:A4;margin:14mm}body{max-width:none;margin:0;font-size:11px}"
+       "h1{font-size:20px}h2{font-size:15px;page-break-after:avoid;break-after:avoid}"
+       "h3{page-break-after:avoid;break-after:avoid}svg,img,table,.cards,p.asprs{page-break-inside:avoid;"
+       "break-inside:avoid}svg.chart,svg.map,svg.dsm{max-width:100%}a{color:inherit;text-decoration:none}}"
+       "</style></head><body>";
   h << "<h1>aerotri survey report</h1>";
   if (r.contains("provenance") && r["provenance"].is_object()) {
     // Who made it, when, and how: the adjustment's process.
@@ -387,6 +696,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
       << "<tr><td>2023: RMSE<sub>H</sub></td><td>" << Num(Get(a["edition_2023"], "rmse_h_m")) << "</td></tr>"
       << "<tr><td>2023: RMSE<sub>V</sub></td><td>" << Num(Get(a["edition_2023"], "rmse_v_m")) << "</td></tr>"
       << "<tr><td>2023: RMSE<sub>3D</sub></td><td>" << Num(Get(a["edition_2023"], "rmse_3d_m")) << "</td></tr></table>";
+    h << AsprsStatement(a, r.value("check_points", json::object()).value("count", 0));
   }
   if (r.contains("check_points")) h << PointTable(r["check_points"], "Check points (never used in the adjustment)");
   if (r.contains("control_points")) h << PointTable(r["control_points"], "Control points");
@@ -406,6 +716,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
       << "</td></tr></table>";
   }
   h << AdjustmentStatistics(r);
+  h << CameraCalibration(r) << TrackTable(r);
   h << "<h2>Survey map and residual vectors</h2>" << SurveyMap(r);
 
   std::vector<std::string> names;
@@ -417,8 +728,15 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     dn.push_back(Get(c, "dn_m"));
     du.push_back(Get(c, "du_m"));
   }
-  h << "<h2>Camera positions against GPS</h2><p>Adjusted camera centre minus its GPS position (east, north, up).</p>"
-    << BarChart(names, {de, dn, du}, {"east", "north", "up"}, {"#c33", "#36c", "#3a3"}, "metres");
+  h << "<h2>Camera positions against GPS</h2><p>Adjusted camera centre minus its GPS position (east, north, up).</p>";
+  if (static_cast<int>(names.size()) > kMaxBars) {
+    std::vector<double> horizontal(de.size());
+    for (size_t i = 0; i < de.size(); ++i) horizontal[i] = std::hypot(de[i], dn[i]);
+    h << "<h3>Horizontal</h3>" << Distribution(names, horizontal, "cameras", "metres (horizontal)", 3)
+      << "<h3>Up</h3>" << Distribution(names, du, "cameras", "metres (up)", 3);
+  } else {
+    h << BarChart(names, {de, dn, du}, {"east", "north", "up"}, {"#c33", "#36c", "#3a3"}, "metres");
+  }
 
   std::vector<std::string> inames;
   std::vector<double> rms, pairs;
@@ -428,7 +746,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     rms.push_back(Get(im, "reprojection_rms_px"));
   }
   h << "<h2>Reprojection error per image</h2>"
-    << BarChart(inames, {rms}, {"RMS"}, {"#a6c"}, "pixels (working resolution)");
+    << PerLabelChart(inames, rms, "RMS", "#a6c", "images", "pixels (working resolution)", 3);
   std::vector<std::string> mnames;
   if (r.contains("matching")) {
     for (const auto& im : r["matching"].value("per_image", json::array())) {
@@ -437,28 +755,39 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
     }
     h << "<h2>Image overlap</h2><p>" << Escape(Text(r["matching"], "strategy", "")) << ": "
       << r["matching"].value("verified_pairs", 0) << " verified pairs of " << r["matching"].value("candidate_pairs", 0)
-      << " candidates.</p>" << BarChart(mnames, {pairs}, {"verified pairs"}, {"#e90"}, "image pairs");
+      << " candidates.</p>" << PerLabelChart(mnames, pairs, "verified pairs", "#e90", "images", "image pairs", 0);
   }
   h << "<h3>Coverage</h3>" << CoverageMap(r.value("coverage", json()));
   h << "<h2>Elevation model</h2>";
   if (!hillshade_png.empty()) {
     const auto& d = r.value("dsm", json::object());
+    const double points = Get(r.value("dense", json::object()), "points"), cell = Get(d, "resolution_m");
+    const double covered = Get(d, "cells_with_points") * cell * cell;
     h << "<p>" << Escape(Text(d, "file", "dsm.tif")) << ": " << d.value("width", 0) << " x "
-      << d.value("height", 0) << " cells of " << Num(Get(d, "resolution_m"), 3) << " m, "
-      << Num(100.0 * Get(d, "filled_fraction", NAN), 1) << " % with data. Hillshade:</p>"
-      << "<img class='dsm' alt='DSM hillshade' src='data:image/png;base64," << Base64(hillshade_png) << "'>";
+      << d.value("height", 0) << " cells of " << Num(cell, 3) << " m, "
+      << Num(100.0 * Get(d, "filled_fraction", NAN), 1) << " % with data; dense cloud "
+      << Num(points / 1e6, 2) << " M points, " << Num(points / covered, 0) << " points/m&sup2; where the DSM has "
+      << "points. Heights as " << Escape(Text(r, "crs", "")) << " defines them (WGS84 ellipsoidal heights "
+      << "unless it names a vertical datum, e.g. EPSG:32632+5773 for EGM96).</p>"
+      << DsmFigure(hillshade_png, d.value("preview", json::object()));
   } else if (r.contains("dense") && r["dense"].contains("skipped")) {
     h << "<p>No dense cloud or DSM: " << Escape(Text(r["dense"], "skipped")) << ".</p>";
   } else {
     h << "<p>No DSM.</p>";
   }
-  h << "<h2>Images</h2><table><tr><th>image</th><th>registered</th><th>GPS</th><th>RMS (px)</th><th>note</th></tr>";
+  const size_t num_images = images.value("per_image", json::array()).size();
+  h << "<h2>Images</h2>";
+  // A long list stays folded (500 rows would bury what follows); print opens it.
+  if (num_images > static_cast<size_t>(kMaxBars)) h << "<details><summary>" << num_images << " images</summary>";
+  h << "<table><tr><th>image</th><th>registered</th><th>GPS</th><th>RMS (px)</th><th>note</th></tr>";
   for (const auto& im : images.value("per_image", json::array())) {
     h << "<tr><td>" << Escape(Text(im, "name", "")) << "</td><td>" << (im.value("registered", false) ? "yes" : "no")
       << "</td><td>" << (im.value("gps", false) ? "yes" : "no") << "</td><td>" << Num(Get(im, "reprojection_rms_px"), 2)
       << "</td><td class='warn'>" << Escape(Text(im, "why_not", "")) << "</td></tr>";
   }
   h << "</table>";
+  if (num_images > static_cast<size_t>(kMaxBars)) h << "</details>";
+  h << Timings(r);
   // Findings (the warnings already hold the ingest ones) and the check stage's.
   std::vector<std::string> warnings;
   for (const auto& w : r.value("warnings", json::array())) {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/report/report_json.h"
 
+#include <algorithm>
 #include <iomanip>
 #include <sstream>
 
@@ -46,6 +47,62 @@ nlohmann::json PointsJson(const std::vector<GroundPointResult>& points, const Ac
     }
     j["points"].push_back(pj);
   }
+  return j;
+}
+
+// The lens distortion along the image diagonal: for radii from the
+// principal point to the farthest corner, the radial and tangential
+// displacement (px) of a distorted point from its ideal pinhole position.
+nlohmann::json DistortionCurve(const Camera& camera) {
+  nlohmann::json curve = {{"note", "displacement of the distorted image point from the ideal pinhole point along "
+                                   "the diagonal from the principal point to the farthest corner (px)"},
+                          {"radius_px", nlohmann::json::array()},
+                          {"radial_px", nlohmann::json::array()},
+                          {"tangential_px", nlohmann::json::array()}};
+  const double f = camera.focal_px();
+  const Eigen::Vector2d pp = camera.principal_point_px();
+  if (!(f > 0.0) || camera.width <= 0 || camera.height <= 0) return curve;
+  Eigen::Vector2d corner(0.0, 0.0);
+  for (const Eigen::Vector2d c : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(camera.width - 0.5, -0.5),
+                                  Eigen::Vector2d(-0.5, camera.height - 0.5),
+                                  Eigen::Vector2d(camera.width - 0.5, camera.height - 0.5)}) {
+    if ((c - pp).norm() > corner.norm()) corner = c - pp;
+  }
+  const Eigen::Vector2d dir = corner.normalized();
+  const Eigen::Vector2d across(-dir.y(), dir.x());
+  const int steps = 24;
+  for (int k = 0; k <= steps; ++k) {
+    const double radius = corner.norm() * k / steps;
+    const Eigen::Vector2d ideal = pp + radius * dir;
+    const Eigen::Vector2d shift = camera.ImageFromNormalized(radius / f * dir) - ideal;
+    curve["radius_px"].push_back(radius);
+    curve["radial_px"].push_back(shift.dot(dir));
+    curve["tangential_px"].push_back(shift.dot(across));
+  }
+  return curve;
+}
+
+// Tie points by track length (the number of images measuring them).
+nlohmann::json TrackStatistics(const SparseModel& model) {
+  const std::vector<int> per_point = model.ObservationsPerPoint();
+  std::vector<int> lengths;
+  for (size_t p = 0; p < model.points.size(); ++p) {
+    if (model.points[p].role == PointRole::kTie && per_point[p] >= 2) lengths.push_back(per_point[p]);
+  }
+  nlohmann::json j = {{"tie_points", lengths.size()}};
+  if (lengths.empty()) return j;
+  std::sort(lengths.begin(), lengths.end());
+  double sum = 0.0;
+  for (int n : lengths) sum += n;
+  j["mean_length"] = sum / lengths.size();
+  j["median_length"] = lengths[lengths.size() / 2];
+  j["max_length"] = lengths.back();
+  nlohmann::json histogram = nlohmann::json::object();
+  for (int n : lengths) {
+    const std::string key = n >= 10 ? "10+" : std::to_string(n);
+    histogram[key] = histogram.value(key, 0) + 1;
+  }
+  j["by_length"] = histogram;
   return j;
 }
 
@@ -99,8 +156,10 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
     c["params"] = params;
     c["pixel_convention"] = "cx, cy with (0, 0) at the centre of the top-left pixel (OpenCV, OpenSfM); COLMAP's "
                             "cameras.txt puts that centre at (0.5, 0.5), so its cx, cy are these plus 0.5";
+    c["distortion_curve"] = DistortionCurve(camera);
     j["intrinsics"].push_back(c);
   }
+  j["tracks"] = TrackStatistics(model);
   return j;
 }
 
@@ -192,6 +251,14 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                  "northing, up); a nadir photo with its top to the north has 0, 0, 0"},
       {"sigmas", "posterior standard deviations (scaled by sigma0^2), position on the grid axes"}};
   j["adjustment"] = BundleSummaryJson(r.bundle, model);
+  for (auto& c : j["adjustment"]["intrinsics"]) {
+    for (const Camera& initial : r.initial_cameras) {
+      if (initial.id != c["camera"].get<int>() || initial.info().name != c["model"].get<std::string>()) continue;
+      nlohmann::json params;
+      for (int i = 0; i < initial.info().num_params(); ++i) params[initial.info().param_names[i]] = initial.params[i];
+      c["initial_params"] = params;
+    }
+  }
   {
     const LeaveOneOut& loo = r.leave_one_out;
     if (loo.computed) {

@@ -1,0 +1,131 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// report.html from report.json content: what a quality report must show
+// (ASPRS 2023 sentence and its 30-point minimum, camera calibration, tie
+// points, timings), readable axes, and charts that stay readable on a
+// 500-image survey.
+#include "libphoto/report/html_report.h"
+
+#include <gtest/gtest.h>
+
+#include <regex>
+#include <string>
+
+namespace aerotri {
+namespace {
+
+using json = nlohmann::json;
+
+json Images(int n, bool with_gps) {
+  json cameras = json::array(), per_image = json::array(), matching = json::array();
+  for (int i = 0; i < n; ++i) {
+    const std::string name = "IMG_" + std::to_string(1000 + i) + ".JPG";
+    // GPS residuals spread from -9.44 m to -1.27 m east: the axis must not
+    // print those values but round ones.
+    cameras.push_back({{"name", name}, {"gps_prior", with_gps}, {"de_m", -9.44 + 8.17 * i / std::max(1, n - 1)},
+                       {"dn_m", 0.5}, {"du_m", -0.25}});
+    per_image.push_back({{"name", name}, {"registered", true}, {"reprojection_rms_px", 0.2 + 0.001 * i}});
+    matching.push_back({{"name", name}, {"verified_pairs", 12}});
+  }
+  return {{"cameras", cameras},
+          {"images", {{"registered", n}, {"total", n}, {"per_image", per_image}}},
+          {"matching", {{"strategy", "gps"}, {"verified_pairs", 12 * n / 2}, {"per_image", matching}}}};
+}
+
+json WithAccuracy(json r, int check_points) {
+  r["check_points"] = {{"count", check_points}, {"points", json::array()}};
+  r["asprs"] = {{"based_on", "6 check points"},
+                {"edition_2014", {{"horizontal_accuracy_95_m", 0.046}, {"nva_95_m", 0.036}}},
+                {"edition_2023", {{"rmse_h_m", 0.0265}, {"rmse_v_m", 0.0186}, {"rmse_3d_m", 0.0324}}}};
+  return r;
+}
+
+TEST(HtmlReport, AsprsStatementAndItsThirtyPointMinimum) {
+  const std::string few = RenderHtmlReport(WithAccuracy(Images(5, true), 6), "");
+  EXPECT_NE(few.find("tested to meet ASPRS Positional Accuracy Standards for Digital Geospatial Data, Edition 2 "
+                     "(2023) for a 3.0 cm RMSE<sub>H</sub> horizontal positional accuracy class"),
+            std::string::npos);
+  EXPECT_NE(few.find("RMSE<sub>H</sub> = 2.6 cm"), std::string::npos);
+  EXPECT_NE(few.find("2.0 cm RMSE<sub>V</sub> vertical positional accuracy class"), std::string::npos);
+  EXPECT_NE(few.find("Only 6 check points"), std::string::npos);
+  const std::string enough = RenderHtmlReport(WithAccuracy(Images(5, true), 30), "");
+  EXPECT_EQ(enough.find("Only 30 check points"), std::string::npos);
+  EXPECT_NE(enough.find("tested to meet ASPRS"), std::string::npos);
+}
+
+TEST(HtmlReport, AxesHaveRoundTicksAndCountsPrintAsIntegers) {
+  const std::string html = RenderHtmlReport(Images(12, true), "");
+  // Ticks at multiples of 2 m from -10 to 2, never at the data's extremes.
+  EXPECT_NE(html.find(">-10</text>"), std::string::npos);
+  EXPECT_NE(html.find(">-4</text>"), std::string::npos);
+  EXPECT_EQ(html.find(">-9.44</text>"), std::string::npos);
+  EXPECT_EQ(html.find(">-1.27</text>"), std::string::npos);
+  EXPECT_NE(html.find("verified pairs: 12 image pairs"), std::string::npos);
+  EXPECT_EQ(html.find("12.000 image pairs"), std::string::npos);
+  EXPECT_NE(html.find("@media print"), std::string::npos);
+}
+
+TEST(HtmlReport, FiveHundredImagesGetDistributionsNotFiveHundredBars) {
+  const std::string small = RenderHtmlReport(Images(40, true), "");
+  const std::string large = RenderHtmlReport(Images(500, true), "");
+  auto count = [](const std::string& s, const std::string& needle) {
+    size_t n = 0;
+    for (size_t p = s.find(needle); p != std::string::npos; p = s.find(needle, p + 1)) ++n;
+    return n;
+  };
+  // 40 images: one bar per image per chart (GPS has three series).
+  EXPECT_GE(count(small, "<rect"), 40u * 5);
+  // 500: histograms, far fewer shapes than images, and the worst named.
+  EXPECT_LT(count(large, "<rect"), 200u);
+  EXPECT_NE(large.find("500 cameras: median"), std::string::npos);
+  EXPECT_NE(large.find("500 images: median"), std::string::npos);
+  EXPECT_NE(large.find("largest: IMG_1499.JPG 0.699"), std::string::npos);
+}
+
+TEST(HtmlReport, CameraCalibrationTieTracksAndTimings) {
+  json r = Images(5, true);
+  r["adjustment"] = {
+      {"refined_intrinsics", "f,cx,cy"},
+      {"intrinsics",
+       {{{"camera", 1},
+         {"model", "PINHOLE"},
+         {"width", 1000},
+         {"height", 750},
+         {"params", {{"f", 801.25}, {"cx", 499.5}, {"cy", 374.5}}},
+         {"initial_params", {{"f", 800.0}, {"cx", 499.5}, {"cy", 374.5}}},
+         {"distortion_curve",
+          {{"radius_px", {0.0, 300.0, 625.0}}, {"radial_px", {0.0, -1.5, -4.0}}, {"tangential_px", {0, 0, 0.1}}}}}}},
+      {"intrinsics_precision", {{{"camera", 1}, {"sigma", {{"f", 0.75}, {"cx", 0.5}}}}}},
+      {"tracks",
+       {{"tie_points", 100}, {"mean_length", 3.5}, {"median_length", 3}, {"max_length", 12},
+        {"by_length", {{"2", 40}, {"3", 30}, {"10+", 2}}}}}};
+  r["timings"] = {{"features", {{"wall_s", 16.6}, {"peak_rss_mb", 430}}},
+                  {"dense", {{"wall_s", 48.0}, {"peak_rss_mb", 1063}}}};
+  const std::string html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("<h2>Camera calibration</h2>"), std::string::npos);
+  // f: initial, adjusted, change and sigma; cy's sigma not computed: held.
+  EXPECT_NE(html.find("<td>f (px)</td><td>800.00</td><td>801.25</td><td>1.25</td><td>0.75</td>"), std::string::npos)
+      << html.substr(html.find("Camera calibration"), 900);
+  EXPECT_NE(html.find("<td>cy (px)</td><td>374.50</td><td>374.50</td><td>0.00</td><td>held</td>"), std::string::npos);
+  EXPECT_NE(html.find("radial</tspan>"), std::string::npos);
+  EXPECT_NE(html.find("100 tie points, measured in 3.50 images on average"), std::string::npos);
+  EXPECT_NE(html.find("<td>tie points</td><td>40</td><td>30</td>"), std::string::npos);
+  EXPECT_NE(html.find("<tr class='total'><td>total</td><td>64.6</td>"), std::string::npos);
+}
+
+TEST(HtmlReport, DsmPreviewHasALegendAndAScaleBar) {
+  json r = Images(5, true);
+  r["dsm"] = {{"file", "dsm.tif"}, {"width", 900}, {"height", 600}, {"resolution_m", 0.16},
+              {"filled_fraction", 0.98}, {"cells_with_points", 500000},
+              {"preview", {{"width_px", 900}, {"height_px", 600}, {"metres_per_px", 0.16},
+                           {"z_low_m", 101.3}, {"z_high_m", 118.9}}}};
+  r["dense"] = {{"points", 5000000}};
+  const std::string html = RenderHtmlReport(r, std::string("\x89PNG", 4));
+  EXPECT_NE(html.find("height (m)"), std::string::npos);
+  // 900 px of 0.16 m is 144 m: the bar is a round 20 or 50 m.
+  EXPECT_TRUE(std::regex_search(html, std::regex(">(20|50) m</text>"))) << html.substr(html.find("Elevation"), 600);
+  EXPECT_NE(html.find(">105</text>"), std::string::npos);  // a round height on the legend
+  EXPECT_NE(html.find("points/m&sup2;"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace aerotri
