@@ -101,6 +101,9 @@ void ValidateInputs(const PipelineOptions& options);
 // ok, warnings, failed). A failed adjustment stops before the dense stage
 // unless options.keep_going; the report stage still runs.
 std::string RunPipeline(const PipelineOptions& options);
+// options.cleanup's work, run after the report: removes OUTPUT/depth/ (the
+// dense stage's depth maps) and says how much it freed; nothing else.
+void CleanUpIntermediates(const PipelineOptions& options);
 // report.json's status in a workspace, or "" before the georeference stage.
 std::string SurveyStatusOf(const std::filesystem::path& workspace);
 
