@@ -350,6 +350,8 @@ bool RunReportStage(const PipelineOptions& o) {
     const Raster dsm = ReadRaster(o.workspace / "dsm.tif");
     report["dense"] = {{"points", dense["points"]}, {"resolution_m", dense["resolution_m"]},
                        {"pairs", dense["pairs"]}, {"files", {"cloud.las", "cloud.ply"}},
+                       {"laz", "not written: Debian 12 packages no LAZ library (LASzip, LAZperf or PDAL); "
+                               "laszip or pdal translate compress cloud.las losslessly"},
                        {"options", dense.value("options", json::object())}};
     report["dsm"] = dense["dsm"];
     report["dsm"]["check_points"] = DsmAtCheckPoints(report, dsm);

@@ -768,7 +768,8 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) { 
       << Num(100.0 * Get(d, "filled_fraction", NAN), 1) << " % with data; dense cloud "
       << Num(points / 1e6, 2) << " M points, " << Num(points / covered, 0) << " points/m&sup2; where the DSM has "
       << "points. Heights as " << Escape(Text(r, "crs", "")) << " defines them (WGS84 ellipsoidal heights "
-      << "unless it names a vertical datum, e.g. EPSG:32632+5773 for EGM96).</p>"
+      << "unless it names a vertical datum, e.g. EPSG:32632+5773 for EGM96). Cloud: cloud.las (LAS 1.4) and "
+      << "cloud.ply; LAZ " << Escape(Text(r.value("dense", json::object()), "laz", "not written")) << ".</p>"
       << DsmFigure(hillshade_png, d.value("preview", json::object()));
   } else if (r.contains("dense") && r["dense"].contains("skipped")) {
     h << "<p>No dense cloud or DSM: " << Escape(Text(r["dense"], "skipped")) << ".</p>";
