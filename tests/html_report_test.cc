@@ -52,6 +52,16 @@ TEST(HtmlReport, AsprsStatementAndItsThirtyPointMinimum) {
   EXPECT_NE(enough.find("tested to meet ASPRS"), std::string::npos);
 }
 
+TEST(HtmlReport, NoCheckPointsMeansNoAccuracyStatement) {
+  json r = WithAccuracy(Images(5, true), 0);
+  r["asprs"]["edition_2023"] = {{"rmse_h_m", 0.0}, {"rmse_v_m", 0.0}, {"rmse_3d_m", 0.0}};
+  const std::string html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("No check points:</b> the accuracy of this survey is not tested"), std::string::npos);
+  EXPECT_EQ(html.find("tested to meet ASPRS"), std::string::npos);
+  EXPECT_EQ(html.find("2023: RMSE"), std::string::npos);
+  EXPECT_NE(html.find("check points RMSE 3D<b>none</b>"), std::string::npos);
+}
+
 TEST(HtmlReport, AxesHaveRoundTicksAndCountsPrintAsIntegers) {
   const std::string html = RenderHtmlReport(Images(12, true), "");
   // Ticks at multiples of 2 m from -10 to 2, never at the data's extremes.

@@ -675,8 +675,11 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) { 
     << "<div class='card'>&sigma;<sub>0</sub> (redundancy " << adj.value("redundancy", 0) << ")<b>"
     << Num(Get(adj, "sigma0", NAN), 3) << "</b></div>"
     << "<div class='card'>GSD<b>" << Num(Get(r, "gsd_m", NAN) * 100, 1) << " cm</b></div>"
-    << "<div class='card'>check points RMSE 3D<b>" << Num(Get(r.value("check_points", json::object()), "rmse_3d_m"), 3)
-    << " m</b></div>"
+    << "<div class='card'>check points RMSE 3D<b>"
+    << (r.value("check_points", json::object()).value("count", 0) > 0
+            ? Num(Get(r.value("check_points", json::object()), "rmse_3d_m"), 3) + " m"
+            : std::string("none"))
+    << "</b></div>"
     << "<div class='card'>CRS<b style='font-size:14px'>" << Escape(Text(r, "crs_name", Text(r, "crs", "none")))
     << "</b></div></div>";
   h << "<p>CRS " << Escape(Text(r, "crs", "–")) << " (" << Escape(Text(r, "crs_source", ""))
@@ -686,7 +689,12 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) { 
     << Escape(Text(adj, "datum", "–")) << ".</p>";
 
   h << "<h2>Accuracy</h2>";
-  if (r.contains("asprs")) {
+  const int num_checks = r.value("check_points", json::object()).value("count", 0);
+  if (num_checks == 0) {
+    // Nothing measured the accuracy: no statement, no zeros that read as one.
+    h << "<p class='warn'><b>No check points:</b> the accuracy of this survey is not tested; no ASPRS "
+         "statement can be made (ASPRS 2023 asks for at least 30 independent check points).</p>";
+  } else if (r.contains("asprs")) {
     const auto& a = r["asprs"];
     h << "<table><tr><th>ASPRS statement (" << Escape(Text(a, "based_on", "")) << ")</th><th>value (m)</th></tr>"
       << "<tr><td>2014: horizontal accuracy at 95 % (1.7308 RMSE<sub>r</sub>)</td><td>"
@@ -705,7 +713,7 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) { 
   } else if (r.contains("leave_one_out")) {
     h << "<p>Leave-one-out: " << Escape(Text(r["leave_one_out"], "note", "")) << ".</p>";
   }
-  if (r.contains("dsm") && r["dsm"].contains("check_points")) {
+  if (num_checks > 0 && r.contains("dsm") && r["dsm"].contains("check_points")) {
     const auto& d = r["dsm"]["check_points"];
     h << "<h3>DSM at the check points</h3><table><tr><th>name</th><th>DSM − surveyed z (m)</th></tr>";
     for (const auto& p : d.value("points", json::array())) {
