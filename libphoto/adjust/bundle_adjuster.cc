@@ -678,7 +678,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
-  auto DescribeGauge = [&]() {
+  auto describe_gauge = [&]() {
     std::ostringstream gauge;
     if (datum_from_priors) {
       gauge << "datum from priors (" << result.num_gps << " GPS, " << result.num_gcp
@@ -702,7 +702,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   };
 
   // The solved blocks back into the model, and the datum restored.
-  auto WriteBack = [&]() {
+  auto write_back = [&]() {
     for (size_t i = 0; i < num_images; ++i) {
       if (!image_used[i]) continue;
       Image& image = model->images[i];
@@ -742,13 +742,13 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       const DenseSchurSummary summary = SolveDenseSchur(schur, so);
       result.solver = "aerotri_dense_schur";
       result.num_images = static_cast<int>(std::count(image_used.begin(), image_used.end(), 1));
-      result.gauge = DescribeGauge();
+      result.gauge = describe_gauge();
       FillCeresSummary(summary, &result.ceres);
       if (options.keep_solver_report) result.report = summary.Report();
       if (options.compute_intrinsics_covariance) {
         result.covariance_note = "not computed: images with a camera group of their own";
       }
-      WriteBack();
+      write_back();
       return result;
     }
     if (options.engine == BundleEngine::kAerotri) {
@@ -899,7 +899,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
-  result.gauge = DescribeGauge();
+  result.gauge = describe_gauge();
 
   ceres::Solver::Options solver_options;
   solver_options.minimizer_type = ceres::TRUST_REGION;
@@ -988,7 +988,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
-  WriteBack();
+  write_back();
   return result;
 }
 
