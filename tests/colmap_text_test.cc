@@ -81,6 +81,10 @@ TEST(ColmapText, RefusesWhatItCannotRepresentWithTheLine) {
       {"images.txt", "1 2 0 0 0 0 0 5 1 a.jpg\n\n", 1, "unit quaternion"},
       {"points3D.txt", "7 0.1 0.2 0.3 255 128 0 0.5 1\n", 1, "odd count"},
       {"points3D.txt", "7 0.1 x 0.3 255 128 0 0.5\n", 1, "expected a number for X Y Z, got 'x'"},
+      // Found by tests/fuzz/fuzz_colmap.cc: an id beyond int was converted with undefined behaviour.
+      {"cameras.txt", "1e20 PINHOLE 640 480 500 500 320 240\n", 1,
+       "expected an integer (at most 2147483647 in magnitude) for CAMERA_ID, got '1e20'"},
+      {"cameras.txt", "1 PINHOLE 4294967296 480 500 500 320 240\n", 1, "for WIDTH, got '4294967296'"},
   };
   for (const Case& c : cases) {
     testing::TempDir dir;

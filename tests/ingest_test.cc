@@ -48,6 +48,18 @@ TEST(ImageMetadata, ExifGpsAndOpticsRoundTripThroughGdal) {
   EXPECT_THROW(ReadImageMetadata(dir / "broken.jpg"), IoError);
 }
 
+// Found by tests/fuzz/fuzz_exif.cc: an EXIF_PixelXDimension of 1e12 was
+// converted to int with undefined behaviour; a corrupt width is now ignored.
+TEST(ImageMetadata, ImplausiblePixelWidthTagIsIgnored) {
+  const auto path = std::filesystem::path(AEROTRI_SOURCE_DIR) / "tests/fuzz/regressions/exif/pixel_x_dimension_overflow.jpg";
+  try {
+    const ImageMetadata m = ReadImageMetadata(path);
+    EXPECT_FALSE(m.exif_pixel_width.has_value());
+  } catch (const IoError&) {
+    // Refusing the file is as good: nothing was converted.
+  }
+}
+
 TEST(GpsSources, Egm96AltitudesBecomeEllipsoidalHeights) {
   // expected: echo "46.5 7.5 0" | cs2cs EPSG:4979 EPSG:4326+5773 -> -50.0934 (N = 50.0934 m)
   EXPECT_NEAR(EllipsoidalHeight(46.5, 7.5, 500.0, AltitudeReference::kEgm96), 550.0934, 1e-3);

@@ -120,7 +120,9 @@ ImageMetadata ReadImageMetadata(const std::filesystem::path& path) {
     const double per_mm = unit == "3" ? *res / 10.0 : unit == "4" ? *res / 1.0
                           : unit == "5" ? *res / 1e-3 : *res / 25.4;  // 2 (inch) is the default
     m.focal_plane_px_per_mm = per_mm;
-    if (const auto w = First(item("EXIF_PixelXDimension")); w && *w > 0) {
+    // A width beyond a million pixels is a corrupt tag, not a sensor (and
+    // would not convert to int).
+    if (const auto w = First(item("EXIF_PixelXDimension")); w && *w > 0 && *w < 1e6) {
       m.exif_pixel_width = static_cast<int>(*w);
     }
   }

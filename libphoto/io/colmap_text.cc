@@ -67,9 +67,11 @@ double Number(const std::filesystem::path& path, const Line& line, size_t i, con
 
 long Integer(const std::filesystem::path& path, const Line& line, size_t i, const char* what) {
   const double v = Number(path, line, i, what);
-  if (v != std::floor(v)) {
-    throw ParseError(path.string(), line.number, std::string("expected an integer for ") + what +
-                                                     ", got '" + line.tokens[i] + "'");
+  // Ids, sizes and indices are ints: a value outside their range (1e20 as a
+  // camera id) is refused here, before a conversion that would be undefined.
+  if (v != std::floor(v) || !(std::abs(v) <= 2147483647.0)) {
+    throw ParseError(path.string(), line.number, std::string("expected an integer (at most 2147483647 in magnitude) for ") +
+                                                     what + ", got '" + line.tokens[i] + "'");
   }
   return static_cast<long>(v);
 }
