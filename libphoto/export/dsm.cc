@@ -14,6 +14,31 @@
 
 namespace aerotri {
 
+std::vector<float> FilledNodata(const Raster& r, double max_distance_px, const std::filesystem::path& work_dir_in) {
+  GDALAllRegister();
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  std::unique_ptr<GDALDataset> ds(mem->Create("", r.width, r.height, 1, GDT_Float32, nullptr));
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  band->SetNoDataValue(r.nodata);
+  if (band->RasterIO(GF_Write, 0, 0, r.width, r.height, const_cast<float*>(r.values.data()), r.width, r.height,
+                     GDT_Float32, 0, 0) != CE_None) {
+    throw IoError("raster", "cannot fill the in-memory raster");
+  }
+  // GDAL puts its work files in CPL_TMPDIR, else the current directory.
+  std::error_code ec;
+  const std::filesystem::path work_dir = work_dir_in.empty() ? std::filesystem::temp_directory_path(ec) : work_dir_in;
+  const std::string previous_tmpdir = CPLGetThreadLocalConfigOption("CPL_TMPDIR", "");
+  CPLSetThreadLocalConfigOption("CPL_TMPDIR", work_dir.string().c_str());
+  const CPLErr filled_ok = GDALFillNodata(band, nullptr, max_distance_px, 0, 0, nullptr, nullptr, nullptr);
+  CPLSetThreadLocalConfigOption("CPL_TMPDIR", previous_tmpdir.empty() ? nullptr : previous_tmpdir.c_str());
+  if (filled_ok != CE_None) throw IoError("raster", std::string("GDALFillNodata failed: ") + CPLGetLastErrorMsg());
+  std::vector<float> out(r.values.size());
+  if (band->RasterIO(GF_Read, 0, 0, r.width, r.height, out.data(), r.width, r.height, GDT_Float32, 0, 0) != CE_None) {
+    throw IoError("raster", "cannot read the filled in-memory raster");
+  }
+  return out;
+}
+
 Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& wkt,
                     const DsmOptions& o, DsmSummary* summary) {
   if (xyz.empty()) throw InvalidArgument("DSM: the point cloud is empty");
@@ -55,29 +80,8 @@ Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& 
   }
   long long filled = 0;
   if (o.fill_max_distance_m > 0) {
-    GDALAllRegister();
-    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-    std::unique_ptr<GDALDataset> ds(mem->Create("", r.width, r.height, 1, GDT_Float32, nullptr));
-    GDALRasterBand* band = ds->GetRasterBand(1);
-    band->SetNoDataValue(o.nodata);
-    if (band->RasterIO(GF_Write, 0, 0, r.width, r.height, r.values.data(), r.width, r.height, GDT_Float32, 0, 0) !=
-        CE_None) {
-      throw IoError("DSM", "cannot fill the in-memory raster");
-    }
     const double max_px = o.fill_max_distance_m / res;
-    // GDAL puts its work files in CPL_TMPDIR, else the current directory.
-    std::error_code ec;
-    const std::filesystem::path work_dir =
-        o.work_dir.empty() ? std::filesystem::temp_directory_path(ec) : o.work_dir;
-    const std::string previous_tmpdir = CPLGetThreadLocalConfigOption("CPL_TMPDIR", "");
-    CPLSetThreadLocalConfigOption("CPL_TMPDIR", work_dir.string().c_str());
-    const CPLErr filled_ok = GDALFillNodata(band, nullptr, max_px, 0, 0, nullptr, nullptr, nullptr);
-    CPLSetThreadLocalConfigOption("CPL_TMPDIR", previous_tmpdir.empty() ? nullptr : previous_tmpdir.c_str());
-    if (filled_ok != CE_None) {
-      throw IoError("DSM", std::string("GDALFillNodata failed: ") + CPLGetLastErrorMsg());
-    }
-    std::vector<float> filled_values(r.values.size());
-    band->RasterIO(GF_Read, 0, 0, r.width, r.height, filled_values.data(), r.width, r.height, GDT_Float32, 0, 0);
+    const std::vector<float> filled_values = FilledNodata(r, max_px, o.work_dir);
     // Fill holes, do not grow the edges: keep a filled cell only inside the
     // morphological closing of the cells with data (dilate, then erode, by
     // the fill distance). Without this every isolated point becomes a disc.

@@ -38,6 +38,12 @@ struct DsmSummary {
 Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& wkt,
                     const DsmOptions& options, DsmSummary* summary = nullptr);
 
+// The raster's values with nodata cells up to max_distance_px from data
+// filled by GDAL's inverse-distance FillNodata (work files in work_dir, or
+// the system's temporary folder when empty).
+std::vector<float> FilledNodata(const Raster& raster, double max_distance_px,
+                                const std::filesystem::path& work_dir = {});
+
 // Bilinear height at (x, y) in the raster's CRS; std::nullopt outside the
 // raster or next to nodata.
 std::optional<double> SampleRaster(const Raster& raster, double x, double y);

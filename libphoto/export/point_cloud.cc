@@ -100,7 +100,7 @@ void WriteLas(const CrsCloud& cloud, const std::filesystem::path& path) {
       std::memcpy(record.data(), xyz, 12);
       record[14] = 0x11;  // return 1 of 1
       record[15] = 0;
-      record[16] = 1;     // unclassified
+      record[16] = i < cloud.classes.size() ? static_cast<char>(cloud.classes[i]) : 1;  // 1: unclassified
       const std::array<std::uint8_t, 3> c = i < cloud.rgb.size() ? cloud.rgb[i] : std::array<std::uint8_t, 3>{0, 0, 0};
       const std::uint16_t rgb[3] = {static_cast<std::uint16_t>(c[0] * 257), static_cast<std::uint16_t>(c[1] * 257),
                                     static_cast<std::uint16_t>(c[2] * 257)};
@@ -162,10 +162,13 @@ CrsCloud ReadLas(const std::filesystem::path& path) {
   }
   if (point_offset + n * record_length > data.size()) throw ParseError(p, 0, "truncated LAS point data");
   cloud.xyz.resize(n);
+  cloud.classes.resize(n);
   if (rgb_at >= 0) cloud.rgb.resize(n);
   for (std::uint64_t i = 0; i < n; ++i) {
     const size_t r = point_offset + i * record_length;
     for (int k = 0; k < 3; ++k) cloud.xyz[i][k] = Get<std::int32_t>(data, r + 4 * k, p) * scale[k] + offset[k];
+    // Formats 0-5: 5 bits of byte 15; formats 6-10: byte 16.
+    cloud.classes[i] = format >= 6 ? Get<std::uint8_t>(data, r + 16, p) : Get<std::uint8_t>(data, r + 15, p) & 0x1F;
     if (rgb_at >= 0) {
       for (int k = 0; k < 3; ++k) {
         cloud.rgb[i][k] = static_cast<std::uint8_t>(Get<std::uint16_t>(data, r + rgb_at + 2 * k, p) >> 8);
