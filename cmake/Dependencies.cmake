@@ -5,7 +5,7 @@
 find_package(Threads REQUIRED)
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(Ceres 2.1 REQUIRED)
-find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs features2d calib3d flann)
+find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs features2d calib3d flann stitching)
 find_package(PROJ 9 REQUIRED CONFIG)
 find_package(GDAL REQUIRED CONFIG)  # GDALConfig accepts only its own minor version
 find_package(CLI11 2 REQUIRED CONFIG)

@@ -47,7 +47,8 @@ TEST(RemoveStaleTemporaryFiles, RemovesWhatKilledWritersLeaveAndNothingElse) {
   const fs::path ws = dir.path();
   fs::create_directories(ws / "depth");
   const std::vector<std::string> stale = {"dsm.tif.tmp.4242.0", "dsm.tif.tmp.4242.0.aux.xml",
-                                          "depth/IMG_1.bin.tmp.17.3", "_4242_1fill_0_work.tif"};
+                                          "depth/IMG_1.bin.tmp.17.3", "_4242_1fill_0_work.tif",
+                                          "contours.gpkg.tmp.4242.1.gpkg", "ortho.tif.tmp.4242.2.building.tif"};
   const std::vector<std::string> kept = {"dsm.tif", "cloud.las", "depth/IMG_1.bin", "notes.tmp.txt",
                                          "report.json.tmp", "IMG.tmp.12.jpg", ".aerotri.lock"};
   for (const auto& f : stale) std::ofstream(ws / f) << "x";

@@ -24,7 +24,7 @@ fs::path TemporaryPathFor(const fs::path& path) {
 }
 
 std::vector<fs::path> RemoveStaleTemporaryFiles(const fs::path& folder) {
-  static const std::regex temporary(R"(.*\.tmp\.[0-9]+\.[0-9]+(\.aux\.xml)?)");
+  static const std::regex temporary(R"(.*\.tmp\.[0-9]+\.[0-9]+(\.aux\.xml|\.gpkg|\.building\.tif)?)");
   static const std::regex gdal_work(R"(_[0-9]+_.*fill.*_work\.tif)");
   std::vector<fs::path> removed;
   std::error_code ec;

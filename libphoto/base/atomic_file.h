@@ -30,7 +30,8 @@ void CommitTemporaryFile(const std::filesystem::path& temporary,
                          const std::filesystem::path& path);
 
 // Removes, anywhere under folder, what a killed writer leaves behind: the
-// temporary files above (NAME.tmp.<pid>.<n>, with GDAL's NAME.tmp.<pid>.<n>.aux.xml)
+// temporary files above (NAME.tmp.<pid>.<n>, with GDAL's NAME.tmp.<pid>.<n>.aux.xml, a
+// GeoPackage's NAME.tmp.<pid>.<n>.gpkg and an orthomosaic's .building.tif)
 // and GDAL's fill-nodata work files (_<pid>_..fill.._work.tif). Only for a
 // folder this process holds a DirectoryLock on, where no other writer can be
 // at work. Returns the paths removed.

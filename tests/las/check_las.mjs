@@ -1,7 +1,7 @@
 // Independent check of aerotri's LAS 1.4 output with copc.js (npm "copc",
 // Connor Manning's LAS 1.4 / COPC reader; not aerotri code): version, point
-// format, count, bounds, coordinates to the millimetre, 16-bit colours, and
-// the OGC WKT CRS record.
+// format, count, bounds, coordinates to the millimetre, 16-bit colours,
+// ASPRS classes, and the OGC WKT CRS record.
 // Usage: node check_las.mjs FILE.las EXPECTED.json   (exit 77 = skipped)
 // The package lives in build/node_modules (scripts/install-test-tools.sh),
 // named by AEROTRI_NODE_MODULES.
@@ -31,7 +31,7 @@ for (let k = 0; k < 3; ++k) {
   if (Math.abs(header.max[k] - expected.max[k]) > 0.0015) fail(`max[${k}] ${header.max[k]} != ${expected.max[k]}`);
 }
 const view = Las.View.create(bytes.subarray(header.pointDataOffset), header);
-const get = Object.fromEntries(['X', 'Y', 'Z', 'Red', 'Green', 'Blue'].map((d) => [d, view.getter(d)]));
+const get = Object.fromEntries(['X', 'Y', 'Z', 'Red', 'Green', 'Blue', 'Classification'].map((d) => [d, view.getter(d)]));
 for (const p of expected.points) {
   for (const [dim, axis] of [['X', 'x'], ['Y', 'y'], ['Z', 'z']]) {
     const got = get[dim](p.index);
@@ -40,6 +40,7 @@ for (const p of expected.points) {
   for (const [dim, c] of [['Red', 'r'], ['Green', 'g'], ['Blue', 'b']]) {
     if (get[dim](p.index) !== p[c] * 257) fail(`point ${p.index} ${dim} ${get[dim](p.index)} != ${p[c] * 257}`);
   }
+  if (get.Classification(p.index) !== p.class) fail(`point ${p.index} class ${get.Classification(p.index)} != ${p.class}`);
 }
 const vlrs = await Las.Vlr.walk(async (b, e) => bytes.subarray(b, e), header);
 const wkt = vlrs.find((v) => v.userId === 'LASF_Projection' && v.recordId === 2112);

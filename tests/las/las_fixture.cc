@@ -22,8 +22,12 @@ int main(int argc, char** argv) {
     cloud.xyz.emplace_back(x, y, z);
     cloud.rgb.push_back({static_cast<std::uint8_t>(i % 256), static_cast<std::uint8_t>((3 * i) % 256),
                          static_cast<std::uint8_t>(255 - i % 256)});
+    // ASPRS classes as the dense stage writes them: 1, 2, 7, 18.
+    const std::uint8_t classes[4] = {1, 2, 7, 18};
+    cloud.classes.push_back(classes[i % 4]);
     if (i % 111 == 0) expected["points"].push_back({{"index", i}, {"x", x}, {"y", y}, {"z", z},
-                                                    {"r", i % 256}, {"g", (3 * i) % 256}, {"b", 255 - i % 256}});
+                                                    {"r", i % 256}, {"g", (3 * i) % 256}, {"b", 255 - i % 256},
+                                                    {"class", std::vector<int>{1, 2, 7, 18}[i % 4]}});
   }
   expected["count"] = 1000;
   expected["min"] = {384900.0, 5150700.0 - 0.0071 * 999, 500.0};
