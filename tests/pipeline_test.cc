@@ -10,6 +10,12 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <gdal_priv.h>
+
+#include <memory>
+#include <opencv2/imgproc.hpp>
+
+#include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/point_cloud.h"
@@ -33,6 +39,43 @@ void CopyTiePointProducts(const fs::path& from, const fs::path& to) {
   }
 }
 
+// GDAL's command-line tools' output (independent of aerotri's code).
+std::string Command(const std::string& cmd) {
+  FILE* pipe = popen((cmd + " 2>/dev/null").c_str(), "r");
+  std::string out;
+  if (!pipe) return out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) out.append(buf, n);
+  pclose(pipe);
+  return out;
+}
+
+struct Rgb {
+  cv::Mat grey, alpha;  // grey as float
+  double gt[6] = {0, 1, 0, 0, 0, -1};
+};
+
+Rgb ReadRgb(const fs::path& path) {
+  GDALAllRegister();
+  Rgb r;
+  std::unique_ptr<GDALDataset> ds(static_cast<GDALDataset*>(GDALOpen(path.string().c_str(), GA_ReadOnly)));
+  if (!ds) return r;
+  ds->GetGeoTransform(r.gt);
+  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+  cv::Mat sum(h, w, CV_32F, cv::Scalar(0));
+  for (int b = 1; b <= 3; ++b) {
+    cv::Mat band(h, w, CV_32F);
+    if (ds->GetRasterBand(b)->RasterIO(GF_Read, 0, 0, w, h, band.data, w, h, GDT_Float32, 0, 0) != CE_None) return r;
+    sum += band / 3.0;
+  }
+  r.grey = sum;
+  r.alpha = cv::Mat(h, w, CV_8U, cv::Scalar(255));
+  GDALRasterBand* mask = ds->GetRasterCount() >= 4 ? ds->GetRasterBand(4) : ds->GetRasterBand(1)->GetMaskBand();
+  if (mask->RasterIO(GF_Read, 0, 0, w, h, r.alpha.data, w, h, GDT_Byte, 0, 0) != CE_None) r.alpha = cv::Mat();
+  return r;
+}
+
 class Pipeline : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -51,6 +94,7 @@ class Pipeline : public ::testing::Test {
     sim.georef.seed = 5;
     WriteSyntheticSurvey(sim, dir_->path() / "survey");
     truth_ = new SparseModel(ReadColmapText(dir_->path() / "survey" / "truth" / "model"));
+    truth_ortho_cell_ = ReadRgb(dir_->path() / "survey" / "truth" / "ortho.tif").gt[1];
     // Bad inputs beside the good photos.
     std::ofstream(dir_->path() / "survey" / "images" / "broken.jpg") << "not a jpeg at all";
     // A photo without EXIF (so without GPS or focal length), between two
@@ -76,14 +120,18 @@ class Pipeline : public ::testing::Test {
     o.workspace = dir_->path() / workspace;
     o.gps_sigma_h_m = 2.0;
     o.gps_sigma_v_m = 4.0;
+    // The truth orthoimage's cell, so that the two grids coincide.
+    o.ortho_resolution_m = truth_ortho_cell_;
     // The adjustment is the product's (SurveyBundleOptions), as users get it.
     return o;
   }
   static testing::TempDir* dir_;
   static SparseModel* truth_;
+  static double truth_ortho_cell_;
 };
 testing::TempDir* Pipeline::dir_ = nullptr;
 SparseModel* Pipeline::truth_ = nullptr;
+double Pipeline::truth_ortho_cell_ = 0.0;
 
 TEST_F(Pipeline, PhotosAndControlToACentimetreSurvey) {
   PipelineOptions o = Options("ws_gcp");
@@ -133,6 +181,7 @@ TEST_F(Pipeline, PhotosAndControlToACentimetreSurvey) {
   EXPECT_FALSE(RunReconstructStage(o));
   EXPECT_FALSE(RunGeoreferenceStage(o));
   EXPECT_FALSE(RunDenseStage(o));
+  EXPECT_FALSE(RunOrthoStage(o));
   EXPECT_FALSE(RunReportStage(o));
 }
 
@@ -143,6 +192,10 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
   RunPipeline(o);  // resumes what the other test did, if it ran first
   const Raster dsm = ReadRaster(o.workspace / "dsm.tif");
   const Raster truth = ReadRaster(dir_->path() / "survey" / "truth" / "dem.tif");
+  // Under the 2D EPSG:32632 the deliverables carry EGM96 heights (EPSG:5773),
+  // the truth ellipsoidal ones: h = H + N, N from the geoid grid.
+  EXPECT_NE(dsm.wkt.find("EGM96 height"), std::string::npos);
+  const double undulation = Egm96Undulation(46.5, 7.5);
   // Inside the surveyed area away from its borders (truth has a 10 m margin
   // around the flown area; stay 8 m further in).
   const int margin = static_cast<int>(18.0 / truth.geotransform[1]);
@@ -152,7 +205,7 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
     for (int x = margin; x < truth.width - margin; ++x) {
       ++cells;
       const auto z = SampleRaster(dsm, truth.X(x), truth.Y(y));
-      if (z) abs_err.push_back(std::abs(*z - truth.at(x, y)));
+      if (z) abs_err.push_back(std::abs(*z + undulation - truth.at(x, y)));
     }
   }
   ASSERT_GT(cells, 100);
@@ -170,6 +223,10 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
   // LAS: our reader gets back the points in the CRS, millimetre-quantised.
   const CrsCloud las = ReadLas(o.workspace / "cloud.las");
   EXPECT_EQ(static_cast<long long>(las.xyz.size()), report["dense"]["points"].get<long long>());
+  // Open meadow: nearly every point is ground (ASPRS 2), none unclassified 0.
+  const long long ground = std::count(las.classes.begin(), las.classes.end(), 2);
+  EXPECT_GT(ground, static_cast<long long>(0.95 * las.classes.size()));
+  EXPECT_EQ(std::count(las.classes.begin(), las.classes.end(), 0), 0);
   EXPECT_NE(las.crs_wkt.find("UTM zone 32N"), std::string::npos);
   EXPECT_NEAR(las.xyz[0].x(), 384900.0, 500.0);
   // report.html is self-contained and shows what a client needs.
@@ -181,6 +238,92 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
                              "tested to meet ASPRS", "check points:</b> ASPRS 2023 asks for at least 30",
                              "<h2>Camera calibration</h2>", "radial</tspan>", "<h2>Tie points</h2>", "height (m)",
                              "points/m&sup2;", "<h2>Processing</h2>", "@media print", "LAZ not written: Debian 12"}) {
+    EXPECT_NE(html.find(needle), std::string::npos) << needle;
+  }
+}
+
+TEST_F(Pipeline, OrthomosaicDtmAndContoursMatchTheTruth) {
+  PipelineOptions o = Options("ws_gcp");
+  o.gcp = dir_->path() / "survey" / "gcp_list.txt";
+  o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
+  RunPipeline(o);
+  const auto report = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  const double gsd = report["gsd_m"];
+  // The orthomosaic against the ground's true colours, on the same lattice.
+  const Rgb ortho = ReadRgb(o.workspace / "ortho.tif"), truth = ReadRgb(dir_->path() / "survey" / "truth" / "ortho.tif");
+  ASSERT_FALSE(ortho.grey.empty());
+  ASSERT_FALSE(truth.grey.empty());
+  ASSERT_NEAR(ortho.gt[1], truth.gt[1], 1e-12);
+  const int ox = static_cast<int>(std::lround((ortho.gt[0] - truth.gt[0]) / truth.gt[1]));
+  const int oy = static_cast<int>(std::lround((truth.gt[3] - ortho.gt[3]) / truth.gt[1]));
+  const int T = 96;
+  double sum2 = 0, max_shift = 0;
+  int tiles = 0, tiles_total = 0;
+  std::vector<float> diffs;
+  for (int y = 0; y + T <= ortho.grey.rows; y += T) {
+    for (int x = 0; x + T <= ortho.grey.cols; x += T) {
+      const cv::Rect r(x, y, T, T), rt(x + ox, y + oy, T, T);
+      if ((rt & cv::Rect(0, 0, truth.grey.cols, truth.grey.rows)) != rt) continue;
+      ++tiles_total;
+      if (cv::countNonZero(ortho.alpha(r) > 127) < T * T) continue;
+      cv::Mat window;
+      cv::createHanningWindow(window, r.size(), CV_32F);
+      const cv::Point2d d = cv::phaseCorrelate(truth.grey(rt), ortho.grey(r), window);
+      sum2 += d.dot(d);
+      max_shift = std::max(max_shift, std::hypot(d.x, d.y));
+      ++tiles;
+      const double gain = cv::mean(truth.grey(rt))[0] / std::max(1.0, cv::mean(ortho.grey(r))[0]);
+      cv::Mat diff = cv::abs(truth.grey(rt) - gain * ortho.grey(r));
+      diffs.insert(diffs.end(), diff.begin<float>(), diff.end<float>());
+    }
+  }
+  ASSERT_GT(tiles, 8);
+  const double rmse_px = std::sqrt(sum2 / tiles);
+  std::nth_element(diffs.begin(), diffs.begin() + diffs.size() / 2, diffs.end());
+  std::printf("ortho against truth: %d tiles, offset RMSE %.3f px (max %.3f), median |dgrey| %.1f DN\n", tiles,
+              rmse_px, max_shift, diffs[diffs.size() / 2]);
+  // Adjusted cameras (check points at ~3 cm) and a stereo DSM: within a cell.
+  EXPECT_LT(rmse_px, 1.0);
+  EXPECT_LT(max_shift, 1.5);
+  EXPECT_GT(rmse_px, 0.01);
+  EXPECT_LT(diffs[diffs.size() / 2], 20.0);  // JPEG photos, noise, exposure gains
+  // The flown area (the truth's, less its 10 m margin) is filled.
+  const double margin_px = 10.0 / truth.gt[1];
+  long long inside = 0, filled = 0;
+  for (int y = 0; y < ortho.grey.rows; ++y) {
+    for (int x = 0; x < ortho.grey.cols; ++x) {
+      const int tx = x + ox, ty = y + oy;
+      if (tx < margin_px || ty < margin_px || tx >= truth.grey.cols - margin_px || ty >= truth.grey.rows - margin_px) continue;
+      ++inside;
+      filled += ortho.alpha.at<std::uint8_t>(y, x) > 127;
+    }
+  }
+  EXPECT_GT(static_cast<double>(filled) / inside, 0.98) << filled << " of " << inside;
+  // Check-point targets located in the ortho: within a GSD.
+  ASSERT_TRUE(report.contains("ortho"));
+  EXPECT_EQ(report["ortho"]["check_points"]["count"], 4) << report["ortho"].dump();
+  EXPECT_LT(report["ortho"]["check_points"]["rmse_h_m"].get<double>(), gsd);
+  // gdalinfo: a COG with a mask, the compound CRS on the DTM, the contours in ogrinfo.
+  const std::string info = Command("gdalinfo '" + (o.workspace / "ortho.tif").string() + "'");
+  if (!info.empty()) {
+    EXPECT_NE(info.find("LAYOUT=COG"), std::string::npos);
+    EXPECT_NE(info.find("Mask Flags: PER_DATASET"), std::string::npos);
+    EXPECT_NE(info.find("Overviews"), std::string::npos);
+    const std::string dtm = Command("gdalinfo '" + (o.workspace / "dtm.tif").string() + "'");
+    EXPECT_NE(dtm.find("VERTCRS[\"EGM96 height\""), std::string::npos);
+    EXPECT_NE(dtm.find("NoData Value=-9999"), std::string::npos);
+    const std::string contours = Command("ogrinfo -so '" + (o.workspace / "contours.gpkg").string() + "' contours");
+    EXPECT_NE(contours.find("Geometry: Line String"), std::string::npos);
+    EXPECT_NE(contours.find("elevation: Real"), std::string::npos);
+    EXPECT_NE(contours.find("index: Integer"), std::string::npos);
+    EXPECT_NE(contours.find("EGM96 height"), std::string::npos);
+  }
+  // The DTM of an open meadow is its DSM: within a few centimetres at the check points.
+  EXPECT_LT(report["dtm"]["check_points"]["rmse_z_m"].get<double>(), 3.0 * gsd);
+  // The report shows them.
+  const std::string html = ReadTextFile(o.workspace / "report.html");
+  for (const char* needle : {"<h2>Orthomosaic</h2>", "<h2>Terrain model (DTM) and contours</h2>",
+                             "This orthoimagery was tested to meet ASPRS", "EGM96 heights", "top left"}) {
     EXPECT_NE(html.find(needle), std::string::npos) << needle;
   }
 }

@@ -158,6 +158,17 @@ struct RunArgs {
   double dsm_resolution_m = 0.0;
   double dsm_fill_m = 2.0;
   bool cog = false;
+  std::string heights = "egm96";
+  double ground_cell_m = 0.5;
+  double ground_window_m = 18.0;
+  double ground_slope = 0.15;
+  double ground_threshold_m = 0.3;
+  double contour_interval_m = 0.0;
+  bool no_ortho = false;
+  double ortho_resolution_m = 0.0;
+  std::string ortho_surface = "dsm";
+  std::string ortho_compress = "jpeg";
+  bool ortho_no_cog = false;
   std::string dem_output;     // aerotri dem
   std::string stage = "all";  // which stage a stage subcommand runs
 };

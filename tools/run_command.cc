@@ -21,7 +21,40 @@ void AddDsmOptions(CLI::App* cmd, RunArgs* a) {
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--dsm-fill", a->dsm_fill_m, "Fill DSM holes up to this distance (metres); 0 = no filling")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
-  cmd->add_flag("--cog", a->cog, "Write the DSM as a Cloud-Optimised GeoTIFF");
+  cmd->add_flag("--cog", a->cog, "Write the DSM and DTM as Cloud-Optimised GeoTIFFs");
+}
+
+void AddTerrainOptions(CLI::App* cmd, RunArgs* a) {
+  cmd->add_option("--heights", a->heights,
+                  "Heights of the deliverables under a 2D output CRS: egm96 (EPSG code + 5773, EGM96 geoid heights, "
+                  "when PROJ's grid is installed) or ellipsoidal (WGS84 ellipsoidal heights, said in the metadata)")
+      ->check(CLI::IsMember({"egm96", "ellipsoidal"}))->capture_default_str();
+  cmd->add_option("--ground-cell", a->ground_cell_m, "Ground filter (SMRF) grid cell (metres)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--ground-window", a->ground_window_m,
+                  "Ground filter: widest object to remove, e.g. the largest building (metres)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--ground-slope", a->ground_slope, "Ground filter: steepest terrain kept as ground (rise / run)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--ground-threshold", a->ground_threshold_m,
+                  "Ground filter: points within this height of the ground surface are ground (metres)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--contour-interval", a->contour_interval_m,
+                  "Contour interval (metres); 0 = a round number near a twentieth of the relief")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+}
+
+void AddOrthoOptions(CLI::App* cmd, RunArgs* a, bool offer_skip) {
+  if (offer_skip) cmd->add_flag("--no-ortho", a->no_ortho, "Do not draw the orthomosaic");
+  cmd->add_option("--ortho-resolution", a->ortho_resolution_m,
+                  "Orthomosaic cell (metres); 0 = the survey's GSD at the working resolution")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--ortho-surface", a->ortho_surface,
+                  "Surface the photos are projected through: dsm (buildings upright, true ortho) or dtm")
+      ->check(CLI::IsMember({"dsm", "dtm"}))->capture_default_str();
+  cmd->add_option("--ortho-compress", a->ortho_compress, "Orthomosaic compression: jpeg (alpha as a mask) or deflate")
+      ->check(CLI::IsMember({"jpeg", "deflate"}))->capture_default_str();
+  cmd->add_flag("--ortho-no-cog", a->ortho_no_cog, "Write a plain tiled GeoTIFF with overviews instead of a COG");
 }
 
 void AddGcpPixelOriginOption(CLI::App* cmd, RunArgs* a) {
@@ -38,12 +71,13 @@ enum OptionGroup : unsigned {
   kGeoreferenceOptions = 1u << 3,
   kDenseOptions = 1u << 4,
   kThreadsOption = 1u << 5,
-  kRunOnlyOptions = 1u << 6,  // what only the whole run does (--cleanup)
+  kRunOnlyOptions = 1u << 6,  // what only the whole run does (--cleanup, --no-ortho)
+  kOrthoOptions = 1u << 7,
   kAllOptions = ~0u,
 };
 
 void AddWorkspaceOption(CLI::App* cmd, std::string* workspace, bool must_exist) {
-  CLI::Option* opt = cmd->add_option("--output,-o", *workspace,
+  CLI::Option* opt = cmd->add_option("--output,-o,--survey", *workspace,
                                      must_exist ? "Survey workspace (the --output folder of aerotri run)"
                                                 : "Survey workspace (output folder)")
                          ->required();
@@ -114,7 +148,9 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
                     "more of hard surfaces such as tree canopy")
         ->check(CLI::Range(1, 50))->capture_default_str();
     AddDsmOptions(cmd, a);
+    AddTerrainOptions(cmd, a);
   }
+  if (groups & kOrthoOptions) AddOrthoOptions(cmd, a, groups & kRunOnlyOptions);
 }
 
 }  // namespace
@@ -128,7 +164,7 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
   };
   const Stage stages[] = {
       {"run", "Photos to an adjusted, georeferenced survey and its deliverables: ingest, features, match, "
-              "reconstruct, georeference, dense (cloud, DSM), report (each stage resumes)",
+              "reconstruct, georeference, dense (cloud, DSM, DTM, contours), ortho, report (each stage resumes)",
        true, kAllOptions},
       {"ingest", "Read EXIF / XMP of a folder of photos into OUTPUT/ingest.json", true, kIngestOptions},
       {"features", "Extract SIFT features of the ingested photos (OUTPUT/features/)", false,
@@ -137,8 +173,10 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
       {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false, kThreadsOption},
       {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
                        "OUTPUT/report.json", false, kGeoreferenceOptions | kThreadsOption},
-      {"dense", "Dense matching and the deliverables: OUTPUT/cloud.las, cloud.ply, dsm.tif", false,
-       kDenseOptions | kThreadsOption},
+      {"dense", "Dense matching and the deliverables: OUTPUT/cloud.las (ground-classified), cloud.ply, dsm.tif, "
+                "dtm.tif, contours.gpkg", false, kDenseOptions | kThreadsOption},
+      {"ortho", "Orthomosaic through the DSM (or DTM): OUTPUT/ortho.tif, a Cloud-Optimised GeoTIFF", false,
+       kOrthoOptions | kThreadsOption},
       {"report", "Complete report.json (DSM at check points, coverage) and write report.html", false, 0u},
   };
   for (const Stage& s : stages) {
@@ -200,6 +238,17 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.dsm_resolution_m = a.dsm_resolution_m;
   o.dsm_fill_m = a.dsm_fill_m;
   o.cog = a.cog;
+  o.heights = a.heights;
+  o.ground_cell_m = a.ground_cell_m;
+  o.ground_window_m = a.ground_window_m;
+  o.ground_slope = a.ground_slope;
+  o.ground_threshold_m = a.ground_threshold_m;
+  o.contour_interval_m = a.contour_interval_m;
+  o.ortho = !a.no_ortho;
+  o.ortho_resolution_m = a.ortho_resolution_m;
+  o.ortho_surface = a.ortho_surface;
+  o.ortho_compress = a.ortho_compress == "deflate" ? "DEFLATE" : "JPEG";
+  o.ortho_cog = !a.ortho_no_cog;
   o.georef.gcp_sigma_h_m = a.gcp_sigma_h_m;
   o.georef.gcp_sigma_v_m = a.gcp_sigma_v_m;
   ApplyAdjustmentPolicy(a.policy, &o.georef);
@@ -228,6 +277,8 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
     RunGeoreferenceStage(o);
   } else if (s == "dense") {
     RunDenseStage(o);
+  } else if (s == "ortho") {
+    RunOrthoStage(o);
   } else if (s == "report") {
     RunReportStage(o);
   } else if (s == "dem") {

@@ -8,14 +8,21 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <regex>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
 #include "libphoto/base/parallel.h"
 #include "libphoto/dense/dense_stereo.h"
+#include "libphoto/export/contours.h"
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/point_cloud.h"
+#include "libphoto/export/terrain.h"
+#include "libphoto/ortho/orthomosaic.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/pipeline/pipeline.h"
 #include "libphoto/pipeline/workspace.h"
@@ -48,6 +55,51 @@ GeoFrame FrameOf(const json& report) {
   return {LocalFrame({o.at("lat_deg"), o.at("lon_deg"), o.at("h_m")}), crs};
 }
 
+// The CRS of the deliverables (cloud, DSM, DTM, contours, ortho): the output
+// CRS when it says what its heights are (compound, vertical axis, geocentric,
+// local, or options.heights "ellipsoidal"); a 2D CRS named by an EPSG code
+// becomes code+5773 (EGM96 heights) when PROJ has the geoid grid. `note`:
+// the heights in words, for the files' metadata and the report.
+Crs DeliverableCrs(const GeoFrame& g, const PipelineOptions& o, std::string* note) {
+  const Crs& crs = g.crs;
+  if (crs.IsLocal() || crs.IsGeocentric()) {
+    *note = crs.IsLocal() ? "z of the local frame" : "geocentric Z (no heights)";
+    return crs;
+  }
+  if (crs.HasVerticalDatum()) {
+    *note = "heights of the vertical datum of " + crs.Name();
+    return crs;
+  }
+  const std::string ellipsoidal = "WGS84 ellipsoidal heights (" + crs.Name() + " is 2D)";
+  static const std::regex epsg("^\\s*EPSG:([0-9]+)\\s*$", std::regex::icase);
+  std::smatch m;
+  const std::string def = crs.definition();
+  if (o.heights != "egm96" || !std::regex_match(def, m, epsg)) {
+    *note = ellipsoidal;
+    return crs;
+  }
+  try {
+    const Crs compound = Crs::FromString("EPSG:" + m[1].str() + "+5773");
+    compound.FromGeodetic(g.frame.GeodeticFromEnu(Eigen::Vector3d::Zero()));  // the grid is there
+    *note = "EGM96 heights (EPSG:5773)";
+    return compound;
+  } catch (const Error& e) {
+    Log(o, std::string("warning: deliverables: no EGM96 geoid (") + e.what() + "); heights stay " + ellipsoidal);
+    *note = ellipsoidal;
+    return crs;
+  }
+}
+
+// The frame the dense stage wrote its products in (dense.json "crs"; the
+// output CRS for a workspace written before it was recorded).
+GeoFrame DeliverableFrame(const json& report, const json& dense) {
+  GeoFrame g = FrameOf(report);
+  if (dense.contains("crs") && dense["crs"].is_string() && dense["crs"].get<std::string>() != g.crs.definition()) {
+    g.crs = Crs::FromString(dense["crs"].get<std::string>());
+  }
+  return g;
+}
+
 // ENU points to the output CRS on all cores (a Crs per thread: PROJ objects
 // are not shared across threads).
 std::vector<Eigen::Vector3d> ToCrs(const std::vector<Eigen::Vector3d>& enu, const GeoFrame& g, unsigned threads) {
@@ -70,8 +122,8 @@ double DsmResolution(const PipelineOptions& o, double cloud_resolution) {
 
 // status: the survey's (report.json), written into the GeoTIFF's metadata
 // as AEROTRI_SURVEY_STATUS so that a DSM of a failed survey says so.
-void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double resolution, const PipelineOptions& o,
-              const std::string& status, const fs::path& path, json* info) {
+Raster WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double resolution, const PipelineOptions& o,
+                const std::string& status, const std::string& heights, const fs::path& path, json* info) {
   DsmOptions d;
   d.resolution_m = resolution;
   d.fill_max_distance_m = o.dsm_fill_m;
@@ -81,6 +133,7 @@ void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double re
   RasterWriteOptions w;
   w.cog = o.cog;
   if (!status.empty()) w.metadata["AEROTRI_SURVEY_STATUS"] = status;
+  if (!heights.empty()) w.metadata["AEROTRI_HEIGHTS"] = heights;
   WriteRaster(dsm, path, w);
   const double cells = static_cast<double>(summary.width) * summary.height;
   *info = {{"file", path.filename().string()},
@@ -92,6 +145,7 @@ void WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double re
            {"filled_fraction", cells > 0 ? (summary.cells_with_data + summary.cells_filled) / cells : 0.0},
            {"fill_max_distance_m", o.dsm_fill_m},
            {"cog", o.cog}};
+  return dsm;
 }
 
 // A preview of the DSM, at most max_size pixels wide: elevation colours
@@ -158,7 +212,11 @@ DsmPreview DsmPreviewPng(const fs::path& dsm, int max_size) {
       const double shading = 0.35 + 0.65 * light[k] / 255.0;
       band[k] = static_cast<unsigned char>(std::clamp(ElevationRampColour((z[k] - lo) / span)[b] * shading, 0.0, 255.0));
     }
-    GDALRasterIO(GDALGetRasterBand(rgb, b + 1), GF_Write, 0, 0, pw, ph, band.data(), pw, ph, GDT_Byte, 0, 0);
+    if (GDALRasterIO(GDALGetRasterBand(rgb, b + 1), GF_Write, 0, 0, pw, ph, band.data(), pw, ph, GDT_Byte, 0, 0) !=
+        CE_None) {
+      GDALClose(rgb);
+      return out;
+    }
   }
   const std::string vsi = "/vsimem/aerotri_dsm_preview.png";
   GDALDatasetH png = GDALCreateCopy(GDALGetDriverByName("PNG"), vsi.c_str(), rgb, FALSE, nullptr, nullptr, nullptr);
@@ -175,21 +233,29 @@ DsmPreview DsmPreviewPng(const fs::path& dsm, int max_size) {
               {"metres_per_px", std::abs(gt[1]) * w / pw},
               {"z_low_m", lo},
               {"z_high_m", hi},
-              {"z_range", "2nd to 98th percentile of the DSM heights"}};
+              {"z_range", "2nd to 98th percentile of the heights"},
+              {"x_min", gt[0]},
+              {"y_max", gt[3]},
+              {"x_max", gt[0] + w * gt[1]},
+              {"y_min", gt[3] + h * gt[5]}};
   return out;
 }
 
 // DSM heights at the check points against their surveyed heights.
-json DsmAtCheckPoints(const json& report, const Raster& dsm) {
+// Surveyed positions are in the output CRS, the DSM in the deliverables' CRS.
+json DsmAtCheckPoints(const json& report, const Raster& dsm, const GeoFrame& output, const GeoFrame& deliverable) {
   json out = {{"points", json::array()}};
   double sum = 0.0;
   int n = 0;
   for (const auto& p : report.value("check_points", json::object()).value("points", json::array())) {
     if (!p.contains("surveyed")) continue;
     json e = {{"name", p.value("name", "")}};
-    const auto z = SampleRaster(dsm, p["surveyed"][0], p["surveyed"][1]);
+    const Eigen::Vector3d surveyed(p["surveyed"][0].get<double>(), p["surveyed"][1].get<double>(),
+                                   p["surveyed"][2].get<double>());
+    const Eigen::Vector3d q = deliverable.crs.FromGeodetic(output.crs.ToGeodetic(surveyed));
+    const auto z = SampleRaster(dsm, q.x(), q.y());
     if (z) {
-      const double dz = *z - p["surveyed"][2].get<double>();
+      const double dz = *z - q.z();
       e["dz_m"] = dz;
       sum += dz * dz;
       ++n;
@@ -226,12 +292,160 @@ json Coverage(const SparseModel& model, const Raster& dsm, const GeoFrame& g) {
   return {{"nx", nx}, {"ny", ny}, {"counts", counts}};
 }
 
+// A preview of the orthomosaic, at most max_size pixels wide (GDAL reads its
+// overviews), transparent cells white; with what its scale bar needs.
+DsmPreview OrthoPreviewPng(const fs::path& ortho, int max_size) {
+  GDALAllRegister();
+  DsmPreview out;
+  GDALDatasetH src = GDALOpen(ortho.string().c_str(), GA_ReadOnly);
+  if (!src) return out;
+  const int w = GDALGetRasterXSize(src), h = GDALGetRasterYSize(src);
+  double gt[6] = {0, 1, 0, 0, 0, 1};
+  GDALGetGeoTransform(src, gt);
+  const double s = std::min(1.0, static_cast<double>(max_size) / std::max(w, h));
+  const int pw = std::max(1, static_cast<int>(w * s)), ph = std::max(1, static_cast<int>(h * s));
+  cv::Mat rgb(ph, pw, CV_8UC3), alpha(ph, pw, CV_8U, cv::Scalar(255));
+  GDALRasterIOExtraArg extra;
+  INIT_RASTERIO_EXTRA_ARG(extra);
+  extra.eResampleAlg = GRIORA_Average;
+  bool ok = true;
+  for (int b = 0; b < 3 && ok; ++b) {
+    cv::Mat band(ph, pw, CV_8U);
+    ok = GDALRasterIOEx(GDALGetRasterBand(src, b + 1), GF_Read, 0, 0, w, h, band.data, pw, ph, GDT_Byte, 0, 0,
+                        &extra) == CE_None;
+    cv::Mat channels[3];
+    cv::split(rgb, channels);
+    band.copyTo(channels[2 - b]);  // BGR for OpenCV
+    cv::merge(channels, 3, rgb);
+  }
+  // The alpha band, or the mask of a JPEG COG.
+  GDALRasterBandH mask = GDALGetRasterCount(src) >= 4 ? GDALGetRasterBand(src, 4)
+                                                      : GDALGetMaskBand(GDALGetRasterBand(src, 1));
+  if (ok && mask) {
+    ok = GDALRasterIOEx(mask, GF_Read, 0, 0, w, h, alpha.data, pw, ph, GDT_Byte, 0, 0, &extra) == CE_None;
+  }
+  GDALClose(src);
+  if (!ok) return out;
+  rgb.setTo(cv::Scalar(255, 255, 255), alpha < 128);
+  std::vector<unsigned char> png;
+  if (!cv::imencode(".png", rgb, png)) return out;
+  out.png.assign(png.begin(), png.end());
+  out.info = {{"width_px", pw},
+              {"height_px", ph},
+              {"metres_per_px", std::abs(gt[1]) * w / pw},
+              {"x_min", gt[0]},
+              {"y_max", gt[3]},
+              {"x_max", gt[0] + w * gt[1]},
+              {"y_min", gt[3] + h * gt[5]}};
+  return out;
+}
+
+// Check-point targets located in the orthomosaic: within 1.5 m of the
+// surveyed position, the strongest saddle (the centre of a checker target:
+// most negative Hessian determinant of the smoothed grey image), refined to
+// a fraction of a cell by OpenCV's cornerSubPix. A target whose saddle does
+// not stand out (weaker than a third of the window's contrast) is "not
+// located" rather than a guess.
+json OrthoAtCheckPoints(const json& report, const fs::path& ortho, const GeoFrame& output,
+                        const GeoFrame& deliverable) {
+  json out = {{"points", json::array()},
+              {"method", "checker-target centre (saddle point) located in the orthomosaic within 1.5 m of the "
+                         "surveyed position"}};
+  GDALAllRegister();
+  GDALDatasetH src = GDALOpen(ortho.string().c_str(), GA_ReadOnly);
+  if (!src) return out;
+  const int w = GDALGetRasterXSize(src), h = GDALGetRasterYSize(src);
+  double gt[6];
+  GDALGetGeoTransform(src, gt);
+  const double cell = std::abs(gt[1]);
+  const int half = std::max(8, static_cast<int>(std::ceil(1.5 / cell)));
+  std::vector<Eigen::Vector2d> errors;
+  for (const auto& p : report.value("check_points", json::object()).value("points", json::array())) {
+    if (!p.contains("surveyed")) continue;
+    json e = {{"name", p.value("name", "")}};
+    const Eigen::Vector3d surveyed(p["surveyed"][0].get<double>(), p["surveyed"][1].get<double>(),
+                                   p["surveyed"][2].get<double>());
+    const Eigen::Vector3d q = deliverable.crs.FromGeodetic(output.crs.ToGeodetic(surveyed));
+    const double px = (q.x() - gt[0]) / gt[1], py = (q.y() - gt[3]) / gt[5];
+    const int x0 = static_cast<int>(px) - half, y0 = static_cast<int>(py) - half, size = 2 * half + 1;
+    if (x0 < 0 || y0 < 0 || x0 + size > w || y0 + size > h) {
+      e["located"] = false;
+      e["reason"] = "outside the orthomosaic";
+      out["points"].push_back(e);
+      continue;
+    }
+    cv::Mat rgb[3], alpha;
+    bool ok = true;
+    for (int b = 0; b < 3 && ok; ++b) {
+      rgb[b] = cv::Mat(size, size, CV_8U);
+      ok = GDALRasterIO(GDALGetRasterBand(src, b + 1), GF_Read, x0, y0, size, size, rgb[b].data, size, size, GDT_Byte,
+                        0, 0) == CE_None;
+    }
+    GDALRasterBandH mask = GDALGetRasterCount(src) >= 4 ? GDALGetRasterBand(src, 4)
+                                                        : GDALGetMaskBand(GDALGetRasterBand(src, 1));
+    alpha = cv::Mat(size, size, CV_8U);
+    ok = ok && GDALRasterIO(mask, GF_Read, x0, y0, size, size, alpha.data, size, size, GDT_Byte, 0, 0) == CE_None;
+    if (!ok || cv::countNonZero(alpha < 128) > 0) {
+      e["located"] = false;
+      e["reason"] = "the orthomosaic has gaps around it";
+      out["points"].push_back(e);
+      continue;
+    }
+    cv::Mat grey = (rgb[0] + rgb[1] + rgb[2]) / 3, f;
+    grey.convertTo(f, CV_32F);
+    cv::GaussianBlur(f, f, cv::Size(0, 0), 1.5);
+    cv::Mat dxx, dyy, dxy;
+    cv::Sobel(f, dxx, CV_32F, 2, 0, 3);
+    cv::Sobel(f, dyy, CV_32F, 0, 2, 3);
+    cv::Sobel(f, dxy, CV_32F, 1, 1, 3);
+    cv::Mat det = dxx.mul(dyy) - dxy.mul(dxy);
+    double min_det, max_det;
+    cv::Point at;
+    const int border = 4;
+    cv::minMaxLoc(det(cv::Rect(border, border, size - 2 * border, size - 2 * border)), &min_det, &max_det, &at);
+    at += cv::Point(border, border);
+    double lo, hi;
+    cv::minMaxLoc(f, &lo, &hi);
+    const double contrast = std::max(1.0, hi - lo);
+    // A saddle of contrast c smoothed by sigma: |det| ~ (c / sigma^2)^2 x kernel gain; compare in the same units.
+    if (!(min_det < 0) || std::sqrt(-min_det) < contrast / 3.0) {
+      e["located"] = false;
+      e["reason"] = "no target centre stands out";
+      out["points"].push_back(e);
+      continue;
+    }
+    std::vector<cv::Point2f> corner = {cv::Point2f(static_cast<float>(at.x), static_cast<float>(at.y))};
+    cv::cornerSubPix(grey, corner, cv::Size(4, 4), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 0.01));
+    // Pixel (i, j) centre is at i + 0.5 cells from the window's corner.
+    const double x = gt[0] + (x0 + corner[0].x + 0.5) * gt[1], y = gt[3] + (y0 + corner[0].y + 0.5) * gt[5];
+    const Eigen::Vector2d d(x - q.x(), y - q.y());
+    e["located"] = true;
+    e["d_m"] = {d.x(), d.y()};
+    e["dh_m"] = d.norm();
+    errors.push_back(d);
+    out["points"].push_back(e);
+  }
+  GDALClose(src);
+  double sx = 0, sy = 0;
+  for (const auto& d : errors) sx += d.x() * d.x(), sy += d.y() * d.y();
+  const int n = static_cast<int>(errors.size());
+  out["count"] = n;
+  if (n > 0) {
+    out["rmse_x_m"] = std::sqrt(sx / n);
+    out["rmse_y_m"] = std::sqrt(sy / n);
+    out["rmse_h_m"] = std::sqrt((sx + sy) / n);
+  }
+  return out;
+}
+
 }  // namespace
 
 bool RunDenseStage(const PipelineOptions& o) {
   const fs::path las = o.workspace / "cloud.las", ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
+  const fs::path dtm = o.workspace / "dtm.tif", contours = o.workspace / "contours.gpkg";
   bool rerun = o.force;
-  if (fs::exists(las) && fs::exists(ply) && fs::exists(dsm) && !o.force) {
+  if (fs::exists(las) && fs::exists(ply) && fs::exists(dsm) && fs::exists(dtm) && fs::exists(contours) && !o.force) {
     const json recorded =
         fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense") : json::object();
     const std::string changed = FingerprintChanges(recorded.value("options", json()), DenseFingerprint(o));
@@ -295,21 +509,75 @@ bool RunDenseStage(const PipelineOptions& o) {
                                       " depth maps (" + std::to_string(summary.pairs) + " pairs matched, " +
                                       std::to_string(summary.pairs_failed) + " failed)";
     Log(o, "warning: dense: " + why + "; no cloud or DSM written");
-    for (const fs::path& stale : {las, ply, dsm}) fs::remove(stale);  // of an earlier model
+    for (const fs::path& stale : {las, ply, dsm, dtm, contours, o.workspace / "ortho.tif"}) {
+      fs::remove(stale);  // of an earlier model
+    }
     WriteTextFileAtomically(o.workspace / "dense.json",
                             json({{"points", 0}, {"pairs", summary.pairs}, {"skipped", why}}).dump(2) + "\n");
     RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
     return false;
   }
+  std::string heights;
+  const GeoFrame deliverable{g.frame, DeliverableCrs(g, o, &heights)};
   CrsCloud out;
-  out.xyz = ToCrs(cloud.positions, g, Threads(o));
+  out.xyz = ToCrs(cloud.positions, deliverable, Threads(o));
   out.rgb = cloud.colours;
-  out.crs_wkt = g.crs.WktV1();
-  out.crs_name = g.crs.Name();
+  out.crs_wkt = deliverable.crs.WktV1();
+  out.crs_name = deliverable.crs.Name();
+  // Ground and above-ground (SMRF), then the surfaces.
+  GroundFilterOptions gf;
+  gf.cell_m = o.ground_cell_m;
+  gf.max_window_m = o.ground_window_m;
+  gf.slope = o.ground_slope;
+  gf.elevation_threshold_m = o.ground_threshold_m;
+  GroundFilterSummary ground;
+  const bool classify = !deliverable.crs.IsGeographic() && !deliverable.crs.IsGeocentric();
+  if (classify) out.classes = ClassifyGround(out.xyz, gf, &ground);
   WriteLas(out, las);
   WritePly(out, ply);
   json dsm_info;
-  WriteDsm(out.xyz, g.crs, DsmResolution(o, cloud.resolution_m), o, report.value("status", ""), dsm, &dsm_info);
+  const std::string status = report.value("status", "");
+  const Raster dsm_raster = WriteDsm(out.xyz, deliverable.crs, DsmResolution(o, cloud.resolution_m), o, status,
+                                     heights, dsm, &dsm_info);
+  json dtm_info = json::object(), contour_info = json::object(), ground_info = json::object();
+  if (classify && ground.ground > 0) {
+    DtmSummary dtm_summary;
+    const Raster dtm_raster = RasterizeDtm(out.xyz, out.classes, dsm_raster, o.workspace, &dtm_summary);
+    RasterWriteOptions w;
+    w.cog = o.cog;
+    if (!status.empty()) w.metadata["AEROTRI_SURVEY_STATUS"] = status;
+    w.metadata["AEROTRI_HEIGHTS"] = heights;
+    w.metadata["AEROTRI_SURFACE"] = "bare earth: ground points (SMRF), interpolated under objects";
+    WriteRaster(dtm_raster, dtm, w);
+    const double cells = static_cast<double>(dtm_raster.width) * dtm_raster.height;
+    dtm_info = {{"file", "dtm.tif"},
+                {"cells_ground", dtm_summary.cells_ground},
+                {"cells_interpolated", dtm_summary.cells_interpolated},
+                {"interpolated_fraction", cells > 0 ? dtm_summary.cells_interpolated / cells : 0.0}};
+    ContourOptions co;
+    co.interval_m = o.contour_interval_m;
+    ContourSummary cs;
+    WriteContours(dtm_raster, contours, co, &cs);
+    contour_info = {{"file", "contours.gpkg"},     {"interval_m", cs.interval_m},
+                    {"index_every", co.index_every}, {"smoothing_sigma_m", cs.smoothing_sigma_m},
+                    {"lines", cs.lines},           {"dropped_short", cs.dropped_short}};
+    ground_info = {{"method", "SMRF (Pingel et al. 2013)"},
+                   {"cell_m", gf.cell_m},
+                   {"window_m", gf.max_window_m},
+                   {"slope", gf.slope},
+                   {"threshold_m", gf.elevation_threshold_m},
+                   {"ground", ground.ground},
+                   {"above_ground", ground.above},
+                   {"noise", ground.noise}};
+  } else {
+    for (const fs::path& stale : {dtm, contours}) fs::remove(stale);
+    Log(o, classify ? "warning: dense: no ground points; no DTM or contours"
+                    : "warning: dense: ground filtering needs a projected CRS; no DTM or contours");
+  }
+  json file_bytes = {{"cloud.las", fs::file_size(las)}, {"cloud.ply", fs::file_size(ply)},
+                     {"dsm.tif", fs::file_size(dsm)}};
+  if (fs::exists(dtm)) file_bytes["dtm.tif"] = fs::file_size(dtm);
+  if (fs::exists(contours)) file_bytes["contours.gpkg"] = fs::file_size(contours);
   const json dense = {{"pairs", summary.pairs},
                       {"pairs_failed", summary.pairs_failed},
                       {"depth_points", summary.depth_points},
@@ -317,16 +585,19 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"resolution_m", cloud.resolution_m},
                       {"min_views", d.min_views},
                       {"tiles", summary.tiles},
+                      {"crs", deliverable.crs.definition()},
+                      {"heights", heights},
                       {"dsm", dsm_info},
+                      {"dtm", dtm_info},
+                      {"contours", contour_info},
+                      {"ground", ground_info},
                       {"options", DenseFingerprint(o)},
-                      {"file_bytes",
-                       {{"cloud.las", fs::file_size(las)}, {"cloud.ply", fs::file_size(ply)},
-                        {"dsm.tif", fs::file_size(dsm)}}}};
+                      {"file_bytes", file_bytes}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
   fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
   Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud.resolution_m) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
-             std::to_string(dsm_info["height"].get<int>()));
+             std::to_string(dsm_info["height"].get<int>()) + "; " + heights);
   RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
   return true;
 }
@@ -339,30 +610,146 @@ bool RunReportStage(const PipelineOptions& o) {
   }
   const auto start = Clock::now();
   json report = ReadJson(o.workspace / "report.json", "georeference");
-  DsmPreview preview;
+  std::map<std::string, std::string> previews;
   if (fs::exists(o.workspace / "dense.json")) {
     const json dense = json::parse(ReadTextFile(o.workspace / "dense.json"));
     if (dense.contains("skipped")) report["dense"] = {{"points", 0}, {"skipped", dense["skipped"]}};
   }
+  for (const char* key : {"dtm", "contours", "ground", "ortho", "heights"}) report.erase(key);
   if (fs::exists(o.workspace / "dsm.tif") && fs::exists(o.workspace / "dense.json")) {
     const json dense = json::parse(ReadTextFile(o.workspace / "dense.json"));
     const GeoFrame g = FrameOf(report);
+    const GeoFrame deliverable = DeliverableFrame(report, dense);
     const Raster dsm = ReadRaster(o.workspace / "dsm.tif");
     report["dense"] = {{"points", dense["points"]}, {"resolution_m", dense["resolution_m"]},
                        {"pairs", dense["pairs"]}, {"files", {"cloud.las", "cloud.ply"}},
                        {"laz", "not written: Debian 12 packages no LAZ library (LASzip, LAZperf or PDAL); "
                                "laszip or pdal translate compress cloud.las losslessly"},
                        {"options", dense.value("options", json::object())}};
+    report["heights"] = {{"crs", deliverable.crs.definition()},
+                         {"crs_name", deliverable.crs.Name()},
+                         {"description", dense.value("heights", "as the output CRS defines them")}};
     report["dsm"] = dense["dsm"];
-    report["dsm"]["check_points"] = DsmAtCheckPoints(report, dsm);
-    report["coverage"] = Coverage(ReadColmapText(o.workspace / "georeferenced"), dsm, g);
-    preview = DsmPreviewPng(o.workspace / "dsm.tif", 900);
-    if (!preview.png.empty()) report["dsm"]["preview"] = preview.info;
+    report["dsm"]["check_points"] = DsmAtCheckPoints(report, dsm, g, deliverable);
+    report["coverage"] = Coverage(ReadColmapText(o.workspace / "georeferenced"), dsm, deliverable);
+    DsmPreview preview = DsmPreviewPng(o.workspace / "dsm.tif", 900);
+    if (!preview.png.empty()) {
+      report["dsm"]["preview"] = preview.info;
+      previews["dsm"] = preview.png;
+    }
+    if (dense.contains("ground") && !dense["ground"].empty()) report["ground"] = dense["ground"];
+    if (dense.contains("contours") && !dense["contours"].empty()) report["contours"] = dense["contours"];
+    if (fs::exists(o.workspace / "dtm.tif") && dense.contains("dtm") && !dense["dtm"].empty()) {
+      report["dtm"] = dense["dtm"];
+      const Raster dtm = ReadRaster(o.workspace / "dtm.tif");
+      report["dtm"]["check_points"] = DsmAtCheckPoints(report, dtm, g, deliverable);
+      DsmPreview p = DsmPreviewPng(o.workspace / "dtm.tif", 900);
+      if (!p.png.empty()) {
+        report["dtm"]["preview"] = p.info;
+        previews["dtm"] = p.png;
+      }
+    }
+    if (fs::exists(o.workspace / "ortho.tif") && fs::exists(o.workspace / "ortho.json")) {
+      const json ortho = json::parse(ReadTextFile(o.workspace / "ortho.json"));
+      report["ortho"] = ortho.value("ortho", json::object());
+      report["ortho"]["check_points"] = OrthoAtCheckPoints(report, o.workspace / "ortho.tif", g, deliverable);
+      DsmPreview p = OrthoPreviewPng(o.workspace / "ortho.tif", 900);
+      if (!p.png.empty()) {
+        report["ortho"]["preview"] = p.info;
+        previews["ortho"] = p.png;
+      }
+    }
   }
   RecordTiming(o, "report", std::chrono::duration<double>(Clock::now() - start).count());
   report["timings"] = json::parse(ReadTextFile(o.workspace / "timings.json"));
   WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
-  WriteTextFileAtomically(html, RenderHtmlReport(report, preview.png));
+  WriteTextFileAtomically(html, RenderHtmlReport(report, previews));
+  return true;
+}
+
+bool RunOrthoStage(const PipelineOptions& o) {
+  const fs::path path = o.workspace / "ortho.tif", record = o.workspace / "ortho.json";
+  if (!o.ortho) {
+    Log(o, "ortho: not asked for (--no-ortho)");
+    return false;
+  }
+  if (!fs::exists(o.workspace / "dense.json")) throw IoError((o.workspace / "dense.json").string(), "missing: run the dense stage first");
+  const json dense = ReadJson(o.workspace / "dense.json", "dense");
+  const std::string surface_name = o.ortho_surface == "dtm" ? "dtm.tif" : "dsm.tif";
+  const fs::path surface_path = o.workspace / surface_name;
+  if (dense.contains("skipped") || !fs::exists(surface_path)) {
+    Log(o, "warning: ortho: no " + surface_name + " to project the photos through; no orthomosaic");
+    fs::remove(path);
+    return false;
+  }
+  // What the ortho depends on: its options and the surface it was drawn on.
+  json fingerprint = OrthoFingerprint(o);
+  fingerprint["surface_bytes"] = fs::file_size(surface_path);
+  fingerprint["sparse"] = ContentHash(o.workspace / "georeferenced" / "images.txt");
+  if (fs::exists(path) && fs::exists(record) && !o.force) {
+    const json recorded = ReadJson(record, "ortho");
+    const std::string changed = FingerprintChanges(recorded.value("options", json()), fingerprint);
+    std::error_code ec;
+    const auto bytes = fs::file_size(path, ec);
+    if (!ec && recorded.value("file_bytes", json::object()).value("ortho.tif", std::uintmax_t{0}) == bytes &&
+        changed.empty()) {
+      Log(o, "ortho: done already (" + path.string() + ")");
+      return false;
+    }
+    Log(o, "ortho: " + (changed.empty() ? std::string("ortho.tif damaged since it was written") : "inputs changed (" + changed + ")") + ": rerunning");
+  }
+  const auto start = Clock::now();
+  const json report = ReadJson(o.workspace / "report.json", "georeference");
+  if (report.value("status", "") == "failed" && !o.keep_going) {
+    throw InvalidArgument((o.workspace / "report.json").string() +
+                          ": the adjustment failed (see its errors); no orthomosaic is drawn from it "
+                          "(--keep-going draws it, tagged as failed)");
+  }
+  const GeoFrame deliverable = DeliverableFrame(report, dense);
+  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
+  IngestView ingest = LoadIngest(o);
+  const fs::path images_dir = ingest.ImagesDir(o);
+  const int max_dimension = ingest.record.working_max_dimension;
+  const Raster surface = ReadRaster(surface_path);
+  OrthoOptions oo;
+  oo.resolution_m = o.ortho_resolution_m > 0 ? o.ortho_resolution_m
+                                             : std::max(0.005, std::round(dense.value("resolution_m", 0.1) * 1000.0) / 1000.0);
+  oo.compress = o.ortho_compress;
+  oo.cog = o.ortho_cog;
+  oo.num_threads = o.num_threads;
+  oo.work_dir = o.workspace;
+  oo.metadata["AEROTRI_SURFACE"] = surface_name;
+  if (!report.value("status", "").empty()) oo.metadata["AEROTRI_SURVEY_STATUS"] = report.value("status", "");
+  const std::string definition = deliverable.crs.definition();
+  const LocalFrame frame = deliverable.frame;
+  const CrsToWorldFactory to_world = [definition, frame]() -> CrsToWorld {
+    auto crs = std::make_shared<Crs>(Crs::FromString(definition));
+    return [crs, frame](const Eigen::Vector3d& xyz) { return frame.EnuFromGeodetic(crs->ToGeodetic(xyz)); };
+  };
+  OrthoSummary summary;
+  WriteOrthomosaic(
+      model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, surface,
+      to_world, oo, path, StageProgress(o, "ortho"), &summary);
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  const json out = {{"ortho",
+                     {{"file", "ortho.tif"},
+                      {"resolution_m", oo.resolution_m},
+                      {"width", summary.width},
+                      {"height", summary.height},
+                      {"surface", surface_name},
+                      {"images_used", summary.images_used},
+                      {"filled_fraction", summary.filled_fraction},
+                      {"compress", oo.compress},
+                      {"cog", oo.cog},
+                      {"seconds", seconds}}},
+                    {"options", fingerprint},
+                    {"file_bytes", {{"ortho.tif", fs::file_size(path)}}}};
+  WriteTextFileAtomically(record, out.dump(2) + "\n");
+  fs::remove(o.workspace / "report.html");  // the report shows the ortho: it reruns
+  Log(o, "ortho: " + std::to_string(summary.width) + " x " + std::to_string(summary.height) + " at " +
+             std::to_string(oo.resolution_m) + " m from " + std::to_string(summary.images_used) + " photos, " +
+             std::to_string(100.0 * summary.filled_fraction).substr(0, 5) + " % of the surface filled");
+  RecordTiming(o, "ortho", seconds);
   return true;
 }
 
@@ -384,11 +771,12 @@ fs::path RebuildDsm(const PipelineOptions& o, fs::path path) {
     std::snprintf(name, sizeof(name), "dsm_%gm.tif", resolution);
     path = o.workspace / name;
   }
-  const GeoFrame g = FrameOf(report);
+  const json dense = fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense") : json::object();
+  const GeoFrame g = DeliverableFrame(report, dense);  // cloud.las is in it
   const CrsCloud cloud = ReadLas(o.workspace / "cloud.las");
   if (cloud.xyz.empty()) throw InvalidArgument((o.workspace / "cloud.las").string() + ": no points");
   json info;
-  WriteDsm(cloud.xyz, g.crs, resolution, o, report.value("status", ""), path, &info);
+  WriteDsm(cloud.xyz, g.crs, resolution, o, report.value("status", ""), dense.value("heights", ""), path, &info);
   Log(o, "dem: " + path.string() + " " + std::to_string(info["width"].get<int>()) + " x " +
              std::to_string(info["height"].get<int>()) + " cells, " +
              std::to_string(100.0 * info["filled_fraction"].get<double>()) + " % with data");

@@ -553,6 +553,7 @@ std::string RunPipeline(const PipelineOptions& o) {
            "(--keep-going writes them, tagged as failed)");
   } else {
     RunDenseStage(o);
+    RunOrthoStage(o);
   }
   RunReportStage(o);
   if (o.cleanup) CleanUpIntermediates(o);

@@ -13,7 +13,9 @@
 //   georeference sparse/ (COLMAP text, ENU metres, full-resolution pixels),
 //                georeferenced/ (the same at the working resolution),
 //                cameras.csv (positions in the output CRS), report.json
-//   dense        cloud.las, cloud.ply (output CRS), dsm.tif (GeoTIFF / COG)
+//   dense        cloud.las (ground-classified), cloud.ply, dsm.tif, dtm.tif,
+//                contours.gpkg (the deliverable CRS: heights stated)
+//   ortho        ortho.tif (RGB + alpha Cloud-Optimised GeoTIFF)
 //   report       report.json completed (DSM at check points, coverage) and
 //                report.html (self-contained, opens offline)
 //
@@ -68,7 +70,26 @@ struct PipelineOptions {
   int dense_min_views = 2;          // depth maps that must agree on a point
   double dsm_resolution_m = 0.0;    // 0: twice the dense resolution
   double dsm_fill_m = 2.0;          // holes filled up to this distance
-  bool cog = false;                 // Cloud-Optimised GeoTIFF
+  bool cog = false;                 // Cloud-Optimised GeoTIFF (DSM, DTM)
+  // Heights of the deliverables under a 2D output CRS given as an EPSG code:
+  // "egm96" (the default: the compound CRS code+5773, EGM96 heights, when
+  // PROJ's geoid grid is present) or "ellipsoidal" (the CRS's own WGS84
+  // ellipsoidal heights, stated in the files' metadata).
+  std::string heights = "egm96";
+
+  // terrain (dense stage): ground classification (SMRF), DTM, contours
+  double ground_cell_m = 0.5;
+  double ground_window_m = 18.0;
+  double ground_slope = 0.15;
+  double ground_threshold_m = 0.3;
+  double contour_interval_m = 0.0;  // 0: a round number near a twentieth of the relief
+
+  // ortho
+  bool ortho = true;
+  double ortho_resolution_m = 0.0;   // 0: the dense spacing (the GSD at working resolution)
+  std::string ortho_surface = "dsm";  // or "dtm"
+  std::string ortho_compress = "JPEG";  // or "DEFLATE"
+  bool ortho_cog = true;
 
   // Who asked: recorded in report.json "provenance" with the date and the
   // effective options (set by the command-line tool; empty from a library caller).
@@ -89,6 +110,7 @@ bool RunReconstructStage(const PipelineOptions& options);
 bool RunGeoreferenceStage(const PipelineOptions& options);
 
 bool RunDenseStage(const PipelineOptions& options);
+bool RunOrthoStage(const PipelineOptions& options);
 bool RunReportStage(const PipelineOptions& options);
 
 // Checks every input before the first heavy stage: the output CRS, the GPS

@@ -162,7 +162,15 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
 nlohmann::json DenseFingerprint(const PipelineOptions& o) {
   return {{"dense_resolution_m", o.dense_resolution_m}, {"dense_image_scale", o.dense_image_scale},
           {"dense_min_views", o.dense_min_views},       {"dsm_resolution_m", o.dsm_resolution_m},
-          {"dsm_fill_m", o.dsm_fill_m},                 {"cog", o.cog}};
+          {"dsm_fill_m", o.dsm_fill_m},                 {"cog", o.cog},
+          {"heights", o.heights},                       {"ground_cell_m", o.ground_cell_m},
+          {"ground_window_m", o.ground_window_m},       {"ground_slope", o.ground_slope},
+          {"ground_threshold_m", o.ground_threshold_m}, {"contour_interval_m", o.contour_interval_m}};
+}
+
+nlohmann::json OrthoFingerprint(const PipelineOptions& o) {
+  return {{"ortho_resolution_m", o.ortho_resolution_m}, {"ortho_surface", o.ortho_surface},
+          {"ortho_compress", o.ortho_compress},         {"ortho_cog", o.ortho_cog}};
 }
 
 nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options) {

@@ -35,6 +35,7 @@ std::string ContentHash(const std::filesystem::path& path);
 nlohmann::json IngestFingerprint(const PipelineOptions& o);
 nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o);
 nlohmann::json DenseFingerprint(const PipelineOptions& o);
+nlohmann::json OrthoFingerprint(const PipelineOptions& o);
 // report.json "provenance" of the adjustment: software version, command line
 // and UTC date of the process that ran the georeference stage, with the
 // options that produced it -- ingest's as recorded in ingest.json (it may

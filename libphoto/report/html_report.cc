@@ -448,6 +448,14 @@ std::string DsmFigure(const std::string& png, const json& preview) {
         << "<text x='10' y='" << hgt + 34 << "' font-size='11'>0</text><text x='" << 10 + len << "' y='" << hgt + 34
         << "' font-size='11' text-anchor='middle'>" << Num(metres, DecimalsFor(t)) << " m</text>";
   }
+  const double x_min = Get(preview, "x_min"), y_max = Get(preview, "y_max");
+  const double x_max = Get(preview, "x_max"), y_min = Get(preview, "y_min");
+  if (std::isfinite(x_min) && std::isfinite(y_min)) {
+    // The corners' coordinates (output CRS), as on a map sheet's frame.
+    svg << "<text x='" << w << "' y='" << hgt + 24 << "' font-size='10' text-anchor='end'>top left "
+        << Num(x_min, 1) << ", " << Num(y_max, 1) << "; bottom right " << Num(x_max, 1) << ", " << Num(y_min, 1)
+        << "</text>";
+  }
   const double lo = Get(preview, "z_low_m"), hi = Get(preview, "z_high_m");
   if (std::isfinite(lo) && std::isfinite(hi)) {
     const double x = w + 14, top = 20, bar = std::min(hgt - 40, 220.0);
@@ -470,6 +478,77 @@ std::string DsmFigure(const std::string& png, const json& preview) {
   }
   svg << "</svg>";
   return svg.str();
+}
+
+// Ground classification, DTM and contours.
+std::string TerrainSection(const json& r, const std::string& dtm_png) {
+  if (!r.contains("dtm")) return "";
+  std::ostringstream h;
+  const auto& d = r["dtm"];
+  const auto& g = r.value("ground", json::object());
+  const auto& c = r.value("contours", json::object());
+  const double ground = Get(g, "ground"), above = Get(g, "above_ground"), noise = Get(g, "noise");
+  const double all = ground + above + noise;
+  h << "<h2>Terrain model (DTM) and contours</h2><p>The dense cloud is classified by "
+    << Escape(Text(g, "method", "a ground filter")) << ": " << Num(100.0 * ground / std::max(1.0, all), 1)
+    << " % ground, " << Num(100.0 * above / std::max(1.0, all), 1) << " % above ground (buildings, vegetation), "
+    << Num(100.0 * noise / std::max(1.0, all), 2) << " % noise (cell " << Num(Get(g, "cell_m"), 2) << " m, window "
+    << Num(Get(g, "window_m"), 1) << " m, slope " << Num(Get(g, "slope"), 2) << "). dtm.tif: the DSM's grid, "
+    << Num(100.0 * Get(d, "interpolated_fraction"), 1) << " % of its cells interpolated under objects. "
+    << "contours.gpkg: " << Get(c, "lines") << " lines every " << Num(Get(c, "interval_m"), 2)
+    << " m (index every " << c.value("index_every", 5) << "th), from the DTM smoothed by a " << Num(Get(c, "smoothing_sigma_m"), 2)
+    << " m Gaussian.</p>";
+  const auto& cp = d.value("check_points", json::object());
+  if (cp.value("count", 0) > 0) {
+    h << "<p>DTM at the " << cp.value("count", 0) << " check points: RMSE z " << Num(Get(cp, "rmse_z_m"), 3)
+      << " m.</p>";
+  }
+  if (!dtm_png.empty()) h << DsmFigure(dtm_png, d.value("preview", json::object()));
+  return h.str();
+}
+
+// The orthomosaic: how it was made, its accuracy at the check points.
+std::string OrthoSection(const json& r, const std::string& ortho_png) {
+  if (!r.contains("ortho")) return "";
+  std::ostringstream h;
+  const auto& o = r["ortho"];
+  h << "<h2>Orthomosaic</h2><p>" << Escape(Text(o, "file", "ortho.tif")) << ": " << o.value("width", 0) << " x "
+    << o.value("height", 0) << " cells of " << Num(Get(o, "resolution_m"), 3) << " m, RGB + alpha"
+    << (o.value("cog", false) ? ", Cloud-Optimised GeoTIFF" : ", GeoTIFF") << " (" << Escape(Text(o, "compress", ""))
+    << "), drawn through " << Escape(Text(o, "surface", "dsm.tif")) << " from " << o.value("images_used", 0)
+    << " photos; " << Num(100.0 * Get(o, "filled_fraction"), 1) << " % of the surveyed surface filled.</p>";
+  const auto& cp = o.value("check_points", json::object());
+  const int n = cp.value("count", 0);
+  const int listed = static_cast<int>(cp.value("points", json::array()).size());
+  if (listed > 0) {
+    h << "<table><tr><th>check point</th><th>dx (m)</th><th>dy (m)</th><th>horizontal (m)</th></tr>";
+    for (const auto& p : cp["points"]) {
+      h << "<tr><td>" << Escape(Text(p, "name", "")) << "</td>";
+      if (p.value("located", false)) {
+        h << "<td>" << Num(p["d_m"][0].get<double>(), 3) << "</td><td>" << Num(p["d_m"][1].get<double>(), 3)
+          << "</td><td>" << Num(Get(p, "dh_m"), 3) << "</td></tr>";
+      } else {
+        h << "<td colspan='3'>not located: " << Escape(Text(p, "reason", "")) << "</td></tr>";
+      }
+    }
+    h << "</table><p>Targets located in the orthomosaic itself (" << Escape(Text(cp, "method", "")) << ").</p>";
+  }
+  if (n > 0) {
+    const double rmse_h = Get(cp, "rmse_h_m");
+    // ASPRS 2023 (Edition 2): horizontal class by RMSE_H; the sentence for orthoimagery.
+    h << "<p><b>ASPRS:</b> This orthoimagery was tested to meet ASPRS Positional Accuracy Standards for Digital "
+         "Geospatial Data, Edition 2 (2023) for a "
+      << Num(100.0 * rmse_h, 1) << " cm RMSE<sub>H</sub> horizontal positional accuracy class. The tested "
+      << "horizontal positional accuracy was found to be RMSE<sub>H</sub> = " << Num(100.0 * rmse_h, 1) << " cm ("
+      << "RMSE<sub>x</sub> " << Num(100.0 * Get(cp, "rmse_x_m"), 1) << " cm, RMSE<sub>y</sub> "
+      << Num(100.0 * Get(cp, "rmse_y_m"), 1) << " cm, " << n << " check points"
+      << (n < 30 ? "; ASPRS 2023 asks for at least 30" : "") << ").</p>";
+  } else if (listed > 0) {
+    h << "<p class='warn'>No check-point target was located in the orthomosaic: no horizontal accuracy is "
+         "stated for it.</p>";
+  }
+  if (!ortho_png.empty()) h << DsmFigure(ortho_png, o.value("preview", json::object()));
+  return h.str();
 }
 
 // Initial and adjusted intrinsics with their sigmas, and the lens
@@ -613,7 +692,16 @@ std::string Base64(const std::string& bytes) {
   return out;
 }
 
-std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {  // hillshade_png: the DSM preview
+std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
+  return RenderHtmlReport(r, std::map<std::string, std::string>{{"dsm", hillshade_png}});
+}
+
+std::string RenderHtmlReport(const json& r, const std::map<std::string, std::string>& previews) {
+  const auto png_of = [&](const char* key) {
+    const auto it = previews.find(key);
+    return it == previews.end() ? std::string() : it->second;
+  };
+  const std::string hillshade_png = png_of("dsm");  // the DSM preview
   std::ostringstream h;
   h << "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>aerotri survey report</title><style>"
        "body{font-family:sans-serif;margin:2em auto;max-width:1000px;color:#222}"
@@ -775,10 +863,12 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) { 
       << d.value("height", 0) << " cells of " << Num(cell, 3) << " m, "
       << Num(100.0 * Get(d, "filled_fraction", NAN), 1) << " % with data; dense cloud "
       << Num(points / 1e6, 2) << " M points, " << Num(points / covered, 0) << " points/m&sup2; where the DSM has "
-      << "points. Heights as " << Escape(Text(r, "crs", "")) << " defines them (WGS84 ellipsoidal heights "
-      << "unless it names a vertical datum, e.g. EPSG:32632+5773 for EGM96). Cloud: cloud.las (LAS 1.4) and "
-      << "cloud.ply; LAZ " << Escape(Text(r.value("dense", json::object()), "laz", "not written")) << ".</p>"
+      << "points. Heights: " << Escape(Text(r.value("heights", json::object()), "description",
+                                            "as " + Text(r, "crs", "") + " defines them"))
+      << " (deliverables in " << Escape(Text(r.value("heights", json::object()), "crs", Text(r, "crs", "")))
+      << "). Cloud: cloud.las (LAS 1.4, ASPRS classes: 2 ground, 1 above ground, 7 noise) and cloud.ply; LAZ " << Escape(Text(r.value("dense", json::object()), "laz", "not written")) << ".</p>"
       << DsmFigure(hillshade_png, d.value("preview", json::object()));
+    h << TerrainSection(r, png_of("dtm")) << OrthoSection(r, png_of("ortho"));
   } else if (r.contains("dense") && r["dense"].contains("skipped")) {
     h << "<p>No dense cloud or DSM: " << Escape(Text(r["dense"], "skipped")) << ".</p>";
   } else {

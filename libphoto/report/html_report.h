@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <algorithm>
 #include <array>
+#include <map>
 #include <string>
 
 namespace aerotri {
@@ -24,6 +25,9 @@ namespace aerotri {
 // report: the content of report.json (report["dsm"]["preview"] describes
 // the preview); dsm_preview_png: PNG bytes or empty.
 std::string RenderHtmlReport(const nlohmann::json& report, const std::string& dsm_preview_png);
+// The same with every preview: PNG bytes by product ("dsm", "dtm", "ortho";
+// their figures' scale bars and legends come from report.json's "preview").
+std::string RenderHtmlReport(const nlohmann::json& report, const std::map<std::string, std::string>& previews);
 
 std::string Base64(const std::string& bytes);
 

@@ -1,8 +1,11 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/simulate/survey_writer.h"
 
+#include <gdal_priv.h>
+
 #include <cmath>
 #include <iomanip>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
@@ -10,6 +13,7 @@
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/parallel.h"
 #include "libphoto/export/raster.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/io/image_writer.h"
@@ -122,6 +126,62 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
     }
     fs::create_directories(dir / "truth");
     WriteRaster(dem, dir / "truth" / "dem.tif");
+  }
+
+  // Truth orthoimage: the ground's albedo (targets included) over the same
+  // area, on a grid aligned to multiples of its cell, 3 x 3 supersampled.
+  if (options.render_images) {
+    std::vector<GroundTarget> targets;
+    for (const Point& p : truth.points) {
+      if (p.role != PointRole::kTie) targets.push_back({p.position.head<2>(), 1.0});
+    }
+    const double margin = 10.0;
+    const double w = options.survey.area_width_m + 2 * margin;
+    const double h = options.survey.area_height_m + 2 * margin;
+    const Eigen::Vector3d sw = crs.FromGeodetic(frame.GeodeticFromEnu({-w / 2, -h / 2, 0}));
+    const Eigen::Vector3d ne = crs.FromGeodetic(frame.GeodeticFromEnu({w / 2, h / 2, 0}));
+    const double res = options.truth_ortho_resolution_m > 0
+                           ? options.truth_ortho_resolution_m
+                           : std::max(0.001, std::round(scene.survey.gsd_m * 1000.0) / 1000.0);
+    const double x0 = std::floor(sw.x() / res) * res, y0 = std::ceil(ne.y() / res) * res;
+    const int width = static_cast<int>(std::ceil((ne.x() - x0) / res));
+    const int height = static_cast<int>(std::ceil((y0 - sw.y()) / res));
+    cv::Mat rgb(height, width, CV_8UC3);
+    const unsigned threads = ThreadCount(0);
+    ParallelFor(threads, threads, [&](size_t t) {
+      const Crs local = Crs::FromString(options.georef.crs);
+      for (int y = static_cast<int>(t); y < height; y += static_cast<int>(threads)) {
+        for (int x = 0; x < width; ++x) {
+          const Eigen::Vector3d enu = frame.EnuFromGeodetic(
+              local.ToGeodetic({x0 + (x + 0.5) * res, y0 - (y + 0.5) * res, frame.origin().h_m}));
+          Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+          for (int sy = -1; sy <= 1; ++sy) {
+            for (int sx = -1; sx <= 1; ++sx) {
+              sum += GroundAlbedo(enu.x() + sx * res / 3.0, enu.y() + sy * res / 3.0, targets);
+            }
+          }
+          for (int k = 0; k < 3; ++k) rgb.at<cv::Vec3b>(y, x)[k] = cv::saturate_cast<std::uint8_t>(255.0 * sum[k] / 9.0);
+        }
+      }
+    });
+    GDALAllRegister();
+    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+    std::unique_ptr<GDALDataset> ds(mem->Create("", width, height, 3, GDT_Byte, nullptr));
+    double gt[6] = {x0, res, 0.0, y0, 0.0, -res};
+    ds->SetGeoTransform(gt);
+    ds->SetProjection(crs.Wkt().c_str());
+    int bands[3] = {1, 2, 3};
+    if (ds->RasterIO(GF_Write, 0, 0, width, height, rgb.data, width, height, GDT_Byte, 3, bands, 3,
+                     static_cast<GSpacing>(rgb.step), 1, nullptr) != CE_None) {
+      throw IoError((dir / "truth" / "ortho.tif").string(), "cannot fill the in-memory raster");
+    }
+    const fs::path tmp = TemporaryPathFor(dir / "truth" / "ortho.tif");
+    const char* opts[] = {"TILED=YES", "COMPRESS=DEFLATE", "PHOTOMETRIC=RGB", nullptr};
+    GDALDataset* out = GetGDALDriverManager()->GetDriverByName("GTiff")->CreateCopy(
+        tmp.string().c_str(), ds.get(), FALSE, const_cast<char**>(opts), nullptr, nullptr);
+    if (!out) throw IoError(tmp.string(), std::string("cannot write: ") + CPLGetLastErrorMsg());
+    GDALClose(out);
+    fs::rename(tmp, dir / "truth" / "ortho.tif");
   }
 
   nlohmann::json info;

@@ -15,6 +15,8 @@
 //                        (COLMAP text), as another tool would export it
 //   truth/model/         exact cameras and points in ENU (COLMAP text)
 //   truth/dem.tif        the terrain in the output CRS (GeoTIFF)
+//   truth/ortho.tif      the ground's true colours (targets included) in the
+//                        output CRS at the GSD: what an orthomosaic should be
 //   truth/truth.json     origin, CRS, camera, GSD, noise levels
 // GPS altitudes (EXIF and CSV) are EGM96 heights, as EXIF "above sea level".
 
@@ -33,6 +35,7 @@ struct SimulationOptions {
   int jpeg_quality = 88;
   double click_noise_px = 0.3;   // GCP measurement noise in the files
   double dem_resolution_m = 0.5;
+  double truth_ortho_resolution_m = 0.0;  // 0: the GSD rounded to the millimetre
   double sensor_width_mm = 6.4;  // for EXIF focal length in mm
   ProgressCallback progress;
 };

@@ -17,11 +17,11 @@ args=("$sample/images" --gcp "$sample/gcp_list.txt" --checkpoints "$sample/check
   { cat "$work/reference.log" >&2; echo "the uninterrupted run failed" >&2; exit 1; }
 
 # stage: the stderr prefix that shows it has started (report prints none of
-# its own: it starts when the dense stage's last line is out).
+# its own: it starts when the ortho stage's last line is out).
 kills=0
-for stage in ingest features match reconstruct georeference dense report; do
+for stage in ingest features match reconstruct georeference dense ortho report; do
   marker="^$stage:"
-  [ "$stage" = report ] && marker='^dense: [0-9]+ points'
+  [ "$stage" = report ] && marker='^ortho: [0-9]+ x [0-9]+ at'
   log=$work/killed_at_$stage.log
   "$exe" run "${args[@]}" -o "$work/resumed" 2>"$log" >/dev/null &
   pid=$!
@@ -34,7 +34,7 @@ for stage in ingest features match reconstruct georeference dense report; do
   fi
   wait "$pid" 2>/dev/null || true
 done
-[ "$kills" -ge 5 ] || { echo "only $kills of 7 kills landed" >&2; exit 1; }
+[ "$kills" -ge 5 ] || { echo "only $kills of 8 kills landed" >&2; exit 1; }
 
 "$exe" run "${args[@]}" -o "$work/resumed" 2>"$work/final.log" >"$work/resumed.out" ||
   { cat "$work/final.log" >&2; echo "the resumed run failed" >&2; exit 1; }
@@ -80,6 +80,13 @@ echo "cloud.las: $a and $b points"
 # a voxel boundary: counts agree to 1 in 10,000, not to the point.
 [ "$a" -gt 0 ] && [ $(( (a > b ? a - b : b - a) * 10000 )) -le "$a" ] ||
   { echo "cloud.las point counts differ by more than 0.01 %" >&2; status=1; }
+# The orthomosaic and the terrain products are there, on the same grids.
+for f in ortho.tif dtm.tif contours.gpkg; do
+  [ -s "$work/resumed/$f" ] || { echo "resumed run lacks $f" >&2; status=1; }
+done
+size() { gdalinfo "$1" | grep '^Size is'; }
+[ "$(size "$work/reference/ortho.tif")" = "$(size "$work/resumed/ortho.tif")" ] ||
+  { echo "ortho.tif sizes differ" >&2; status=1; }
 # stdout's figures line, without the report path.
 ref=$(sed 's/^report=[^ ]* //' "$work/reference.out")
 res=$(sed 's/^report=[^ ]* //' "$work/resumed.out")
