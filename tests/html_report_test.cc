@@ -137,5 +137,45 @@ TEST(HtmlReport, DsmPreviewHasALegendAndAScaleBar) {
   EXPECT_NE(html.find("points/m&sup2;"), std::string::npos);
 }
 
+TEST(HtmlReport, OrthoAndTerrainSectionsStateTheirAccuracy) {
+  json r = Images(5, true);
+  r["dsm"] = {{"file", "dsm.tif"}, {"width", 900}, {"height", 600}, {"resolution_m", 0.16},
+              {"filled_fraction", 0.98}, {"cells_with_points", 500000}};
+  r["dense"] = {{"points", 5000000}};
+  r["heights"] = {{"crs", "EPSG:32632+5773"}, {"description", "EGM96 heights (EPSG:5773)"}};
+  r["ground"] = {{"method", "SMRF (Pingel et al. 2013)"}, {"ground", 750}, {"above_ground", 240}, {"noise", 10},
+                 {"cell_m", 0.5}, {"window_m", 18.0}, {"slope", 0.15}};
+  r["dtm"] = {{"file", "dtm.tif"}, {"interpolated_fraction", 0.12},
+              {"check_points", {{"count", 6}, {"rmse_z_m", 0.047}}}};
+  r["contours"] = {{"lines", 22}, {"interval_m", 1.0}, {"index_every", 5}, {"smoothing_sigma_m", 2.0}};
+  r["ortho"] = {{"file", "ortho.tif"}, {"width", 2016}, {"height", 1810}, {"resolution_m", 0.078},
+                {"cog", true}, {"compress", "JPEG"}, {"surface", "dsm.tif"}, {"images_used", 35},
+                {"filled_fraction", 0.9999},
+                {"preview", {{"width_px", 900}, {"height_px", 808}, {"metres_per_px", 0.175},
+                             {"x_min", 384820.0}, {"y_max", 5150765.0}, {"x_max", 384977.2}, {"y_min", 5150623.8}}},
+                {"check_points",
+                 {{"count", 2}, {"rmse_x_m", 0.03}, {"rmse_y_m", 0.04}, {"rmse_h_m", 0.05},
+                  {"method", "saddle"},
+                  {"points", {{{"name", "CHK1"}, {"located", true}, {"d_m", {0.03, -0.04}}, {"dh_m", 0.05}},
+                              {{"name", "CHK2"}, {"located", true}, {"d_m", {-0.03, 0.04}}, {"dh_m", 0.05}},
+                              {{"name", "CHK3"}, {"located", false}, {"reason", "no target centre stands out"}}}}}}};
+  const std::string png("\x89PNG", 4);
+  const std::string html = RenderHtmlReport(r, std::map<std::string, std::string>{{"dsm", png}, {"dtm", png}, {"ortho", png}});
+  for (const char* needle :
+       {"<h2>Terrain model (DTM) and contours</h2>", "75.0 % ground, 24.0 % above ground", "12.0 % of its cells interpolated",
+        "22 lines every 1.00 m", "RMSE z 0.047 m", "<h2>Orthomosaic</h2>", "2016 x 1810 cells of 0.078 m",
+        "Cloud-Optimised GeoTIFF", "from 35 photos", "not located: no target centre stands out",
+        "tested to meet ASPRS Positional Accuracy Standards for Digital Geospatial Data, Edition 2 (2023) for a 5.0 cm "
+        "RMSE<sub>H</sub>",
+        "2 check points; ASPRS 2023 asks for at least 30", "top left 384820.0, 5150765.0", "Heights: EGM96 heights"}) {
+    EXPECT_NE(html.find(needle), std::string::npos) << needle;
+  }
+  // Without a located target, no accuracy is claimed for the ortho.
+  r["ortho"]["check_points"] = {{"count", 0}, {"points", {{{"name", "CHK3"}, {"located", false}, {"reason", "x"}}}}};
+  const std::string none = RenderHtmlReport(r, std::map<std::string, std::string>{{"dsm", png}});
+  EXPECT_EQ(none.find("This orthoimagery was tested"), std::string::npos);
+  EXPECT_NE(none.find("no horizontal accuracy is stated for it"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -673,7 +673,6 @@ bool RunOrthoStage(const PipelineOptions& o) {
     Log(o, "ortho: not asked for (--no-ortho)");
     return false;
   }
-  if (!fs::exists(o.workspace / "dense.json")) throw IoError((o.workspace / "dense.json").string(), "missing: run the dense stage first");
   const json dense = ReadJson(o.workspace / "dense.json", "dense");
   const std::string surface_name = o.ortho_surface == "dtm" ? "dtm.tif" : "dsm.tif";
   const fs::path surface_path = o.workspace / surface_name;
