@@ -113,6 +113,7 @@ struct SimulateArgs {
   double forward_overlap = 0.75;
   double side_overlap = 0.65;
   double relief_m = 12.0;
+  int buildings = 0;
   double gps_sigma_h_m = 2.0;
   double gps_sigma_v_m = 4.0;
   int control = 8;

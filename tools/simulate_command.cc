@@ -27,6 +27,9 @@ void RegisterSimulateCommand(CLI::App& app, CommandAction* run) {
   cmd->add_option("--forward-overlap", a->forward_overlap, "Forward overlap (fraction)")->check(CLI::Range(0.05, 0.95))->capture_default_str();
   cmd->add_option("--side-overlap", a->side_overlap, "Side overlap (fraction)")->check(CLI::Range(0.05, 0.95))->capture_default_str();
   cmd->add_option("--relief", a->relief_m, "Terrain relief amplitude (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--buildings", a->buildings,
+                  "Flat-roofed box buildings 6-14 m wide and 4-8 m high, clear of the targets (truth/dsm.tif has them)")
+      ->check(CLI::Range(0, 200))->capture_default_str();
   cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--control", a->control, "Number of ground control points")->check(CLI::Range(0, 100))->capture_default_str();
@@ -56,6 +59,7 @@ int RunSimulate(const SimulateArgs& a, ToolContext& ctx) {
   o.survey.forward_overlap = a.forward_overlap;
   o.survey.side_overlap = a.side_overlap;
   o.survey.relief_m = a.relief_m;
+  o.num_buildings = a.buildings;
   o.survey.num_control_points = a.control;
   o.survey.num_check_points = a.checks;
   o.survey.num_tie_points = a.tie_points;

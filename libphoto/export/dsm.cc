@@ -14,7 +14,8 @@
 
 namespace aerotri {
 
-std::vector<float> FilledNodata(const Raster& r, double max_distance_px, const std::filesystem::path& work_dir_in) {
+std::vector<float> FilledNodata(const Raster& r, double max_distance_px, const std::filesystem::path& work_dir_in,
+                                int smoothing_iterations) {
   GDALAllRegister();
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
   std::unique_ptr<GDALDataset> ds(mem->Create("", r.width, r.height, 1, GDT_Float32, nullptr));
@@ -29,7 +30,7 @@ std::vector<float> FilledNodata(const Raster& r, double max_distance_px, const s
   const std::filesystem::path work_dir = work_dir_in.empty() ? std::filesystem::temp_directory_path(ec) : work_dir_in;
   const std::string previous_tmpdir = CPLGetThreadLocalConfigOption("CPL_TMPDIR", "");
   CPLSetThreadLocalConfigOption("CPL_TMPDIR", work_dir.string().c_str());
-  const CPLErr filled_ok = GDALFillNodata(band, nullptr, max_distance_px, 0, 0, nullptr, nullptr, nullptr);
+  const CPLErr filled_ok = GDALFillNodata(band, nullptr, max_distance_px, 0, smoothing_iterations, nullptr, nullptr, nullptr);
   CPLSetThreadLocalConfigOption("CPL_TMPDIR", previous_tmpdir.empty() ? nullptr : previous_tmpdir.c_str());
   if (filled_ok != CE_None) throw IoError("raster", std::string("GDALFillNodata failed: ") + CPLGetLastErrorMsg());
   std::vector<float> out(r.values.size());

@@ -40,9 +40,11 @@ Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& 
 
 // The raster's values with nodata cells up to max_distance_px from data
 // filled by GDAL's inverse-distance FillNodata (work files in work_dir, or
-// the system's temporary folder when empty).
+// the system's temporary folder when empty); smoothing_iterations passes of
+// GDAL's 3 x 3 smoothing over the filled cells soften its star-shaped
+// artefacts across wide holes.
 std::vector<float> FilledNodata(const Raster& raster, double max_distance_px,
-                                const std::filesystem::path& work_dir = {});
+                                const std::filesystem::path& work_dir = {}, int smoothing_iterations = 0);
 
 // Bilinear height at (x, y) in the raster's CRS; std::nullopt outside the
 // raster or next to nodata.

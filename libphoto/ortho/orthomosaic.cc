@@ -57,27 +57,39 @@ struct View {
   double sharpness = 0.0, weight = 1.0;
   cv::Rect bbox;                  // footprint on the coarse grid
   cv::Mat colour;                 // CV_32FC3 on bbox (coarse rendering)
-  cv::Mat valid;                  // CV_8U on bbox
+  cv::Mat valid;                  // CV_8U on bbox: 255 in sight, 128 in frame but hidden
   cv::Mat cosine;                 // CV_32F on bbox: cos of the ray's angle from the vertical
   cv::Mat zbuffer;                // CV_32F, photo / kZbufferScale
   cv::Scalar gain{1.0, 1.0, 1.0};
   double depth_tolerance = 0.0;   // m, for the z-buffer test
 };
 
-// Pixel of a world point in a view, when it lies in the frame and is not hidden.
-bool Project(const View& v, const Eigen::Vector3d& world, Eigen::Vector2d* xy) {
+// How a view sees a world point: not at all, in its frame but hidden behind
+// the surface, or in its frame and in sight. A noisy or interpolated surface
+// (canopy, water) can hide a point from every view; it is then drawn from
+// the best view that has it in frame rather than left empty.
+enum Sight : std::uint8_t { kOutOfFrame = 0, kHidden = 1, kVisible = 2 };
+
+Sight Project(const View& v, const Eigen::Vector3d& world, Eigen::Vector2d* xy) {
   const Eigen::Vector3d pc = v.pose.CamFromWorld(world);
-  if (pc.z() <= 0) return false;
+  if (pc.z() <= 0) return kOutOfFrame;
   const double xn = pc.x() / pc.z(), yn = pc.y() / pc.z();
-  if (std::abs(xn) > v.max_xn || std::abs(yn) > v.max_yn) return false;
+  if (std::abs(xn) > v.max_xn || std::abs(yn) > v.max_yn) return kOutOfFrame;
   *xy = v.camera->ImageFromNormalized({xn, yn});
-  if (xy->x() < 0 || xy->y() < 0 || xy->x() > v.camera->width - 1.0 || xy->y() > v.camera->height - 1.0) return false;
+  if (xy->x() < 0 || xy->y() < 0 || xy->x() > v.camera->width - 1.0 || xy->y() > v.camera->height - 1.0) {
+    return kOutOfFrame;
+  }
   const int zx = static_cast<int>(xy->x() / kZbufferScale), zy = static_cast<int>(xy->y() / kZbufferScale);
   if (zx < v.zbuffer.cols && zy < v.zbuffer.rows) {
     const float front = v.zbuffer.at<float>(zy, zx);
-    if (pc.z() > front + v.depth_tolerance + 2e-3 * pc.z()) return false;
+    if (pc.z() > front + v.depth_tolerance + 2e-3 * pc.z()) return kHidden;
   }
-  return true;
+  return kVisible;
+}
+
+// A view's score for a cell: visible views always beat hidden ones.
+float Score(Sight sight, double cosine, double weight) {
+  return sight == kOutOfFrame ? -1.0f : static_cast<float>(cosine * weight + (sight == kVisible ? 1.0 : 0.0));
 }
 
 cv::Vec3f Bilinear(const cv::Mat& bgr, double x, double y) {
@@ -159,7 +171,7 @@ void PrepareView(View& v, const cv::Mat& photo, const Grid& coarse, const std::v
   for (int j = 0; j < coarse.height; j += std::min(step, std::max(1, coarse.height - 1 - j))) {
     for (int i = 0; i < coarse.width; i += std::min(step, std::max(1, coarse.width - 1 - i))) {
       const size_t c = static_cast<size_t>(j) * coarse.width + i;
-      if (!has_surface[c] || !Project(v, world[c], &xy)) continue;
+      if (!has_surface[c] || Project(v, world[c], &xy) == kOutOfFrame) continue;
       x_lo = std::min(x_lo, i), x_hi = std::max(x_hi, i), y_lo = std::min(y_lo, j), y_hi = std::max(y_hi, j);
     }
     if (j == coarse.height - 1) break;
@@ -207,8 +219,10 @@ void PrepareView(View& v, const cv::Mat& photo, const Grid& coarse, const std::v
   for (int j = 0; j < v.bbox.height; ++j) {
     for (int i = 0; i < v.bbox.width; ++i) {
       const size_t c = static_cast<size_t>(j + v.bbox.y) * coarse.width + (i + v.bbox.x);
-      if (!has_surface[c] || !Project(v, world[c], &xy)) continue;
-      v.valid.at<std::uint8_t>(j, i) = 255;
+      if (!has_surface[c]) continue;
+      const Sight sight = Project(v, world[c], &xy);
+      if (sight == kOutOfFrame) continue;
+      v.valid.at<std::uint8_t>(j, i) = sight == kVisible ? 255 : 128;
       v.colour.at<cv::Vec3f>(j, i) = Bilinear(photo, xy.x(), xy.y());
       const Eigen::Vector3d ray = v.pose.centre_in_world - world[c];
       v.cosine.at<float>(j, i) = static_cast<float>(ray.z() / ray.norm());
@@ -262,7 +276,7 @@ class BlockToWorld {
 }  // namespace
 
 void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int image)>& load_image,
-                      const Raster& surface, const CrsToWorldFactory& to_world_factory, const OrthoOptions& o,
+                      const Raster& surface_in, const CrsToWorldFactory& to_world_factory, const OrthoOptions& o,
                       const std::filesystem::path& path, const ProgressCallback& progress, OrthoSummary* summary) {
   if (!(o.resolution_m > 0)) throw InvalidArgument("orthomosaic: the resolution must be > 0");
   if (o.tile_size < 64 || o.tile_margin < 0 || o.seam_cell_factor < 1 || o.blend_bands < 0) {
@@ -276,18 +290,27 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
   const unsigned threads = ThreadCount(o.num_threads);
 
   // The grid: the surface's extent with data, at the ortho resolution.
-  const float nd = static_cast<float>(surface.nodata);
+  const float nd = static_cast<float>(surface_in.nodata);
   double min_x = 1e300, max_x = -1e300, min_y = 1e300, max_y = -1e300;
-  for (int y = 0; y < surface.height; ++y) {
-    for (int x = 0; x < surface.width; ++x) {
-      if (surface.at(x, y) == nd) continue;
-      min_x = std::min(min_x, surface.geotransform[0] + x * surface.geotransform[1]);
-      max_x = std::max(max_x, surface.geotransform[0] + (x + 1) * surface.geotransform[1]);
-      max_y = std::max(max_y, surface.geotransform[3] + y * surface.geotransform[5]);
-      min_y = std::min(min_y, surface.geotransform[3] + (y + 1) * surface.geotransform[5]);
+  for (int y = 0; y < surface_in.height; ++y) {
+    for (int x = 0; x < surface_in.width; ++x) {
+      if (surface_in.at(x, y) == nd) continue;
+      min_x = std::min(min_x, surface_in.geotransform[0] + x * surface_in.geotransform[1]);
+      max_x = std::max(max_x, surface_in.geotransform[0] + (x + 1) * surface_in.geotransform[1]);
+      max_y = std::max(max_y, surface_in.geotransform[3] + y * surface_in.geotransform[5]);
+      min_y = std::min(min_y, surface_in.geotransform[3] + (y + 1) * surface_in.geotransform[5]);
     }
   }
   if (max_x < min_x) throw InvalidArgument("orthomosaic: the surface has no data");
+  Raster surface = surface_in;
+  long long interpolated = 0;
+  if (o.fill_surface_holes) {
+    const std::vector<float> filled = FilledNodata(surface, surface.width + surface.height + 1.0, o.work_dir, 20);
+    for (size_t k = 0; k < filled.size(); ++k) {
+      interpolated += surface.values[k] == nd && filled[k] != nd;
+    }
+    surface.values = filled;
+  }
   Grid grid;
   grid.res = o.resolution_m;
   grid.x0 = std::floor(min_x / grid.res) * grid.res;
@@ -367,8 +390,9 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     if (v.bbox.empty()) continue;
     for (int j = 0; j < v.bbox.height; ++j) {
       for (int i = 0; i < v.bbox.width; ++i) {
-        if (!v.valid.at<std::uint8_t>(j, i)) continue;
-        const float s = static_cast<float>(v.cosine.at<float>(j, i) * v.weight);
+        const std::uint8_t seen = v.valid.at<std::uint8_t>(j, i);
+        if (!seen) continue;
+        const float s = Score(seen == 255 ? kVisible : kHidden, v.cosine.at<float>(j, i), v.weight);
         float& b = best.at<float>(j + v.bbox.y, i + v.bbox.x);
         if (s > b) {
           b = s;
@@ -391,7 +415,7 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     if (cv::countNonZero(own) == 0) continue;
     cv::Mat widened;
     cv::dilate(own, widened, band);
-    widened &= v.valid;
+    widened &= v.valid > 0;
     seam_views.push_back(static_cast<int>(k));
     seam_images.push_back(v.colour.getUMat(cv::ACCESS_READ).clone());
     seam_masks.push_back(widened.getUMat(cv::ACCESS_READ).clone());
@@ -429,7 +453,8 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
       cv::Mat c8;
       views[k].colour.convertTo(c8, CV_8UC3);
       images8.push_back(c8.getUMat(cv::ACCESS_READ).clone());
-      valid_masks.emplace_back(views[k].valid.getUMat(cv::ACCESS_READ).clone(), 255);
+      const cv::Mat visible = views[k].valid == 255;  // gains from what each view really sees
+      valid_masks.emplace_back(visible.getUMat(cv::ACCESS_READ).clone(), 255);
     }
     cv::detail::ChannelsCompensator compensator;
     compensator.feed(corners, images8, valid_masks);
@@ -498,15 +523,14 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
           cell_world.at<cv::Vec3d>(j, i) = cv::Vec3d(w.x(), w.y(), w.z());
         }
       }
-      // The views that own a coarse cell near the region.
+      // Every view whose footprint meets the region: the same views for a
+      // cell whichever tile draws it, so that tiles agree at their borders.
       std::set<int> candidates;
       const cv::Rect coarse_region =
           cv::Rect(region.x / factor - 1, region.y / factor - 1, region.width / factor + 3, region.height / factor + 3) &
           cv::Rect(0, 0, coarse.width, coarse.height);
-      for (int j = coarse_region.y; j < coarse_region.y + coarse_region.height; ++j) {
-        for (int i = coarse_region.x; i < coarse_region.x + coarse_region.width; ++i) {
-          if (seam_label.at<int>(j, i) >= 0) candidates.insert(seam_label.at<int>(j, i));
-        }
+      for (size_t k = 0; k < views.size(); ++k) {
+        if (!views[k].bbox.empty() && (views[k].bbox & coarse_region).area() > 0) candidates.insert(static_cast<int>(k));
       }
       const std::vector<int> cand(candidates.begin(), candidates.end());
       std::vector<cv::Mat> map_x(cand.size()), map_y(cand.size()), score(cand.size());
@@ -521,11 +545,12 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
             if (std::isnan(z.at<float>(j, i))) continue;
             const cv::Vec3d& cw = cell_world.at<cv::Vec3d>(j, i);
             const Eigen::Vector3d w(cw[0], cw[1], cw[2]);
-            if (!Project(v, w, &xy)) continue;
+            const Sight sight = Project(v, w, &xy);
+            if (sight == kOutOfFrame) continue;
             map_x[c].at<float>(j, i) = static_cast<float>(xy.x());
             map_y[c].at<float>(j, i) = static_cast<float>(xy.y());
             const Eigen::Vector3d ray = v.pose.centre_in_world - w;
-            score[c].at<float>(j, i) = static_cast<float>(ray.z() / ray.norm() * v.weight);
+            score[c].at<float>(j, i) = Score(sight, ray.z() / ray.norm(), v.weight);
           }
         }
       }
@@ -538,7 +563,7 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
           if (std::isnan(z.at<float>(j, i))) continue;
           const int l = seam_label.at<int>(std::min(coarse.height - 1, (region.y + j) / factor),
                                            std::min(coarse.width - 1, (region.x + i) / factor));
-          if (l >= 0 && index_of[l] >= 0 && score[index_of[l]].at<float>(j, i) >= 0) {
+          if (l >= 0 && index_of[l] >= 0 && score[index_of[l]].at<float>(j, i) >= 1.0f) {  // in sight
             owner.at<int>(j, i) = index_of[l];
             continue;
           }
@@ -592,9 +617,16 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
       for (int j = 0; j < inner.height; ++j) {
         for (int i = 0; i < inner.width; ++i) {
           if (std::isnan(z.at<float>(j + off.y, i + off.x))) continue;
-          ++with_surface;
-          if (owner.at<int>(j + off.y, i + off.x) < 0) continue;
-          ++filled;
+          const bool owned = owner.at<int>(j + off.y, i + off.x) >= 0;
+          // The fraction drawn counts the cells where the surface has data
+          // of its own (not the holes filled for drawing).
+          const int sx = static_cast<int>(std::floor((grid.X(inner.x + i) - surface_in.geotransform[0]) / surface_in.geotransform[1]));
+          const int sy = static_cast<int>(std::floor((grid.Y(inner.y + j) - surface_in.geotransform[3]) / surface_in.geotransform[5]));
+          if (sx >= 0 && sy >= 0 && sx < surface_in.width && sy < surface_in.height && surface_in.at(sx, sy) != nd) {
+            ++with_surface;
+            filled += owned;
+          }
+          if (!owned) continue;
           const cv::Vec3b bgr = blended.at<cv::Vec3b>(j + off.y, i + off.x);
           rgba.at<cv::Vec4b>(j, i) = cv::Vec4b(bgr[2], bgr[1], bgr[0], 255);
         }
@@ -667,6 +699,7 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     summary->cells_with_surface = cells_surface;
     summary->cells_filled = cells_filled;
     summary->filled_fraction = cells_surface > 0 ? static_cast<double>(cells_filled) / cells_surface : 0.0;
+    summary->surface_cells_interpolated = interpolated;
   }
 }
 

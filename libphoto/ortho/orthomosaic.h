@@ -49,6 +49,10 @@ struct OrthoOptions {
   int seam_cell_factor = 4;    // coarse seam grid, in ortho cells
   int seam_band_cells = 6;     // how far (coarse cells) a seam may move
   bool exposure_compensation = true;
+  // Holes in the surface (no dense points: water, tree canopy, shadow) are
+  // filled by GDAL's inverse-distance interpolation for drawing, so the
+  // photos still cover them (positions there are only as good as the fill).
+  bool fill_surface_holes = true;
   bool cog = true;
   std::string compress = "JPEG";  // JPEG or DEFLATE
   int jpeg_quality = 90;
@@ -62,9 +66,10 @@ struct OrthoSummary {
   int width = 0, height = 0;
   int tiles = 0;
   int images_used = 0;             // photos that colour at least one cell
-  double filled_fraction = 0.0;    // of the cells where the surface has data
+  double filled_fraction = 0.0;    // of the cells where the surface has data of its own
   long long cells_with_surface = 0;
   long long cells_filled = 0;
+  long long surface_cells_interpolated = 0;  // holes of the surface filled for drawing
 };
 
 // CRS (x, y, z) to the model's world frame. The factory is called once per

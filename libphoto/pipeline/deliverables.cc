@@ -738,6 +738,10 @@ bool RunOrthoStage(const PipelineOptions& o) {
                       {"surface", surface_name},
                       {"images_used", summary.images_used},
                       {"filled_fraction", summary.filled_fraction},
+                      {"surface_holes_interpolated_fraction",
+                       surface.values.empty() ? 0.0
+                                              : static_cast<double>(summary.surface_cells_interpolated) /
+                                                    static_cast<double>(surface.values.size())},
                       {"compress", oo.compress},
                       {"cog", oo.cog},
                       {"seconds", seconds}}},

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "libphoto/base/parallel.h"
@@ -94,6 +95,78 @@ std::optional<Eigen::Vector3d> IntersectTerrain(const Eigen::Vector3d& c, const 
   return std::nullopt;
 }
 
+double BoxBuilding::RoofHeight(double relief_m) const {
+  return TerrainHeight(centre.x(), centre.y(), relief_m) + height_m;
+}
+
+namespace {
+
+// Roof: red-brown tiles with texture at every scale (so that matching finds
+// points on it); walls: grey render with streaks.
+Eigen::Vector3d RoofAlbedo(double e, double n) {
+  const double tiles = 0.8 + 0.2 * std::sin(n * 2.0 * M_PI / 0.6);
+  const double detail = 0.5 * ValueNoise(e, n, 0.3, 201) + 0.3 * ValueNoise(e, n, 1.1, 202) + 0.2 * ValueNoise(e, n, 3.0, 203);
+  return (Eigen::Vector3d(0.62, 0.30, 0.22) * tiles * (0.6 + 0.8 * detail)).cwiseMin(1.0);
+}
+
+Eigen::Vector3d WallAlbedo(double along, double z) {
+  const double detail = 0.6 * ValueNoise(along, z, 0.4, 301) + 0.4 * ValueNoise(along, z, 1.5, 302);
+  return Eigen::Vector3d(0.6, 0.6, 0.58) * (0.6 + 0.7 * detail);
+}
+
+}  // namespace
+
+double SceneHeight(double e, double n, double relief_m, const std::vector<BoxBuilding>& buildings) {
+  for (const BoxBuilding& b : buildings) {
+    if (b.Contains(e, n)) return b.RoofHeight(relief_m);
+  }
+  return TerrainHeight(e, n, relief_m);
+}
+
+Eigen::Vector3d SceneAlbedoFromAbove(double e, double n, const std::vector<GroundTarget>& targets,
+                                     const std::vector<BoxBuilding>& buildings) {
+  for (const BoxBuilding& b : buildings) {
+    if (b.Contains(e, n)) return RoofAlbedo(e, n);
+  }
+  return GroundAlbedo(e, n, targets);
+}
+
+namespace {
+
+// The colour where a ray first meets the scene (terrain or a building), or
+// nothing when it misses.
+std::optional<Eigen::Vector3d> TraceScene(const Eigen::Vector3d& c, const Eigen::Vector3d& d,
+                                          const RenderOptions& o) {
+  const auto ground = IntersectTerrain(c, d, o.relief_m);
+  double t_best = ground ? (*ground - c).dot(d) / d.squaredNorm() : std::numeric_limits<double>::infinity();
+  std::optional<Eigen::Vector3d> colour;
+  if (ground) colour = GroundAlbedo(ground->x(), ground->y(), o.targets);
+  for (const BoxBuilding& b : o.buildings) {
+    const double roof = b.RoofHeight(o.relief_m);
+    const Eigen::Vector3d lo(b.centre.x() - b.half_size.x(), b.centre.y() - b.half_size.y(), roof - b.height_m - 50.0);
+    const Eigen::Vector3d hi(b.centre.x() + b.half_size.x(), b.centre.y() + b.half_size.y(), roof);
+    double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+    int axis = -1;
+    for (int k = 0; k < 3; ++k) {
+      if (std::abs(d[k]) < 1e-12) {
+        if (c[k] < lo[k] || c[k] > hi[k]) t0 = t1 + 1.0;
+        continue;
+      }
+      double a = (lo[k] - c[k]) / d[k], z = (hi[k] - c[k]) / d[k];
+      if (a > z) std::swap(a, z);
+      if (a > t0) t0 = a, axis = k;
+      t1 = std::min(t1, z);
+    }
+    if (axis < 0 || t0 > t1 || t0 >= t_best) continue;
+    t_best = t0;
+    const Eigen::Vector3d p = c + t0 * d;
+    colour = axis == 2 ? RoofAlbedo(p.x(), p.y()) : WallAlbedo(axis == 0 ? p.y() : p.x(), p.z());
+  }
+  return colour;
+}
+
+}  // namespace
+
 cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions& options) {
   cv::Mat image(camera.height, camera.width, CV_8UC3);
   const int ss = std::max(1, options.supersample);
@@ -111,10 +184,9 @@ cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions&
             const Eigen::Vector2d xy(x - 0.5 + (sx + 0.5) / ss, y - 0.5 + (sy + 0.5) / ss);
             const auto ray = camera.RayFromImage(xy);
             if (!ray) continue;
-            const auto ground = IntersectTerrain(pose.centre_in_world, world_from_cam * *ray,
-                                                 options.relief_m);
-            if (!ground) continue;
-            sum += GroundAlbedo(ground->x(), ground->y(), options.targets);
+            const auto colour = TraceScene(pose.centre_in_world, world_from_cam * *ray, options);
+            if (!colour) continue;
+            sum += *colour;
             ++n;
           }
         }

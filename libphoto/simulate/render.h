@@ -8,6 +8,7 @@
 // from 0.1 m to tens of metres (so that SIFT finds features at any GSD of a
 // drone survey) and square black-and-white targets at the ground points.
 
+#include <cmath>
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <vector>
@@ -21,9 +22,22 @@ struct GroundTarget {
   double size_m = 1.0;         // side of the square (2x2 checker)
 };
 
+// A flat-roofed box building standing on the terrain: its roof lies
+// height_m above the terrain at its centre; its walls go down into the ground.
+struct BoxBuilding {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();     // ENU metres
+  Eigen::Vector2d half_size = Eigen::Vector2d(4, 3);    // east, north half-widths (m)
+  double height_m = 6.0;
+  double RoofHeight(double relief_m) const;
+  bool Contains(double east_m, double north_m) const {
+    return std::abs(east_m - centre.x()) <= half_size.x() && std::abs(north_m - centre.y()) <= half_size.y();
+  }
+};
+
 struct RenderOptions {
   double relief_m = 12.0;
   std::vector<GroundTarget> targets;
+  std::vector<BoxBuilding> buildings;
   int supersample = 2;       // per axis
   double noise_dn = 1.5;     // sensor noise (digital numbers)
   std::uint32_t seed = 1;
@@ -36,6 +50,12 @@ cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions&
 // The ground's albedo at (east, north), RGB in [0, 1].
 Eigen::Vector3d GroundAlbedo(double east_m, double north_m,
                              const std::vector<GroundTarget>& targets);
+
+// The scene's top surface (roofs where there are buildings) and its colour
+// seen from above: what a true orthoimage shows.
+double SceneHeight(double east_m, double north_m, double relief_m, const std::vector<BoxBuilding>& buildings);
+Eigen::Vector3d SceneAlbedoFromAbove(double east_m, double north_m, const std::vector<GroundTarget>& targets,
+                                     const std::vector<BoxBuilding>& buildings);
 
 // Intersection of a ray (centre + t * direction, t > 0) with the terrain;
 // std::nullopt when it misses (looking up, or no convergence).

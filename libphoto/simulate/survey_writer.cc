@@ -47,6 +47,35 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
   std::mt19937 rng(options.survey.seed + 101);
   std::normal_distribution<double> g(0.0, 1.0);
 
+  // Buildings, clear of every target by 3 m and of each other by 4 m.
+  std::vector<BoxBuilding> buildings;
+  {
+    std::mt19937 place(options.survey.seed + 977);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (int attempt = 0; attempt < 2000 && static_cast<int>(buildings.size()) < options.num_buildings; ++attempt) {
+      BoxBuilding b;
+      b.half_size = {3.0 + 4.0 * u(place), 3.0 + 3.0 * u(place)};
+      b.height_m = 4.0 + 4.0 * u(place);
+      b.centre = {(u(place) - 0.5) * (options.survey.area_width_m - 2 * b.half_size.x() - 4.0),
+                  (u(place) - 0.5) * (options.survey.area_height_m - 2 * b.half_size.y() - 4.0)};
+      bool clear = true;
+      for (const Point& p : truth.points) {
+        if (p.role == PointRole::kTie) continue;
+        clear = clear && (std::abs(p.position.x() - b.centre.x()) > b.half_size.x() + 3.0 ||
+                          std::abs(p.position.y() - b.centre.y()) > b.half_size.y() + 3.0);
+      }
+      for (const BoxBuilding& o : buildings) {
+        clear = clear && (std::abs(o.centre.x() - b.centre.x()) > o.half_size.x() + b.half_size.x() + 4.0 ||
+                          std::abs(o.centre.y() - b.centre.y()) > o.half_size.y() + b.half_size.y() + 4.0);
+      }
+      if (clear) buildings.push_back(b);
+    }
+    if (static_cast<int>(buildings.size()) < options.num_buildings) {
+      throw InvalidArgument("simulate: room for only " + std::to_string(buildings.size()) + " of " +
+                            std::to_string(options.num_buildings) + " buildings clear of the targets");
+    }
+  }
+
   // GCP files: measurements are the true target centres plus clicking noise.
   for (GcpFile* file : {&scene.control, &scene.checks}) {
     for (GroundPoint& point : file->points) {
@@ -126,6 +155,20 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
     }
     fs::create_directories(dir / "truth");
     WriteRaster(dem, dir / "truth" / "dem.tif");
+    if (!buildings.empty()) {
+      Raster dsm = dem;
+      for (int y = 0; y < dsm.height; ++y) {
+        for (int x = 0; x < dsm.width; ++x) {
+          const Eigen::Vector3d enu = frame.EnuFromGeodetic(crs.ToGeodetic({dsm.X(x), dsm.Y(y), dem.at(x, y)}));
+          for (const BoxBuilding& b : buildings) {
+            if (!b.Contains(enu.x(), enu.y())) continue;
+            const Eigen::Vector3d roof(enu.x(), enu.y(), b.RoofHeight(options.survey.relief_m));
+            dsm.at(x, y) = static_cast<float>(crs.FromGeodetic(frame.GeodeticFromEnu(roof)).z());
+          }
+        }
+      }
+      WriteRaster(dsm, dir / "truth" / "dsm.tif");
+    }
   }
 
   // Truth orthoimage: the ground's albedo (targets included) over the same
@@ -157,7 +200,7 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
           Eigen::Vector3d sum = Eigen::Vector3d::Zero();
           for (int sy = -1; sy <= 1; ++sy) {
             for (int sx = -1; sx <= 1; ++sx) {
-              sum += GroundAlbedo(enu.x() + sx * res / 3.0, enu.y() + sy * res / 3.0, targets);
+              sum += SceneAlbedoFromAbove(enu.x() + sx * res / 3.0, enu.y() + sy * res / 3.0, targets, buildings);
             }
           }
           for (int k = 0; k < 3; ++k) rgb.at<cv::Vec3b>(y, x)[k] = cv::saturate_cast<std::uint8_t>(255.0 * sum[k] / 9.0);
@@ -202,6 +245,13 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
   info["tie_point_noise_px"] = options.survey.pixel_noise_px;
   info["relief_m"] = options.survey.relief_m;
   info["seed"] = options.survey.seed;
+  info["buildings"] = nlohmann::json::array();
+  for (const BoxBuilding& b : buildings) {
+    info["buildings"].push_back({{"centre_enu_m", {b.centre.x(), b.centre.y()}},
+                                 {"half_size_m", {b.half_size.x(), b.half_size.y()}},
+                                 {"height_m", b.height_m},
+                                 {"roof_up_m", b.RoofHeight(options.survey.relief_m)}});
+  }
   WriteTextFileAtomically(dir / "truth" / "truth.json", info.dump(2) + "\n");
 
   if (!options.render_images) return;
@@ -209,6 +259,7 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
   RenderOptions render;
   render.relief_m = options.survey.relief_m;
   render.seed = options.survey.seed;
+  render.buildings = buildings;
   for (const Point& p : truth.points) {
     if (p.role != PointRole::kTie) render.targets.push_back({p.position.head<2>(), 1.0});
   }

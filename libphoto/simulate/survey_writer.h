@@ -15,8 +15,9 @@
 //                        (COLMAP text), as another tool would export it
 //   truth/model/         exact cameras and points in ENU (COLMAP text)
 //   truth/dem.tif        the terrain in the output CRS (GeoTIFF)
-//   truth/ortho.tif      the ground's true colours (targets included) in the
-//                        output CRS at the GSD: what an orthomosaic should be
+//   truth/ortho.tif      the ground's true colours (targets, roofs) in the
+//                        output CRS at the GSD: what a true orthomosaic should be
+//   truth/dsm.tif        with buildings: the terrain and the roofs
 //   truth/truth.json     origin, CRS, camera, GSD, noise levels
 // GPS altitudes (EXIF and CSV) are EGM96 heights, as EXIF "above sea level".
 
@@ -36,6 +37,10 @@ struct SimulationOptions {
   double click_noise_px = 0.3;   // GCP measurement noise in the files
   double dem_resolution_m = 0.5;
   double truth_ortho_resolution_m = 0.0;  // 0: the GSD rounded to the millimetre
+  // Flat-roofed box buildings (6-14 m wide, 4-8 m high) placed at random
+  // away from the control and check targets; truth/dem.tif stays the bare
+  // terrain, truth/dsm.tif adds the roofs, truth.json lists them.
+  int num_buildings = 0;
   double sensor_width_mm = 6.4;  // for EXIF focal length in mm
   ProgressCallback progress;
 };
