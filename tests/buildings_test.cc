@@ -157,7 +157,8 @@ TEST(Buildings, ClassifiedCloudDtmAndTrueOrthoMatchTheScene) {
 
   // True ortho: the roofs where they are, at the check targets within a GSD.
   EXPECT_EQ(report["ortho"]["check_points"]["count"], 4);
-  EXPECT_LT(report["ortho"]["check_points"]["rmse_h_m"].get<double>(), gsd);
+  // Located to a fraction of a cell (the truth ortho itself gives 0.3 GSD).
+  EXPECT_LT(report["ortho"]["check_points"]["rmse_h_m"].get<double>(), 0.6 * gsd);
 }
 
 }  // namespace

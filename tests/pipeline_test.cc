@@ -302,7 +302,8 @@ TEST_F(Pipeline, OrthomosaicDtmAndContoursMatchTheTruth) {
   // Check-point targets located in the ortho: within a GSD.
   ASSERT_TRUE(report.contains("ortho"));
   EXPECT_EQ(report["ortho"]["check_points"]["count"], 4) << report["ortho"].dump();
-  EXPECT_LT(report["ortho"]["check_points"]["rmse_h_m"].get<double>(), gsd);
+  // Located to a fraction of a cell (the truth ortho itself gives 0.3 GSD).
+  EXPECT_LT(report["ortho"]["check_points"]["rmse_h_m"].get<double>(), 0.6 * gsd);
   // gdalinfo: a COG with a mask, the compound CRS on the DTM, the contours in ogrinfo.
   const std::string info = Command("gdalinfo '" + (o.workspace / "ortho.tif").string() + "'");
   if (!info.empty()) {

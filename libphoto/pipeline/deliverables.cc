@@ -343,9 +343,9 @@ DsmPreview OrthoPreviewPng(const fs::path& ortho, int max_size) {
 // Check-point targets located in the orthomosaic: within 1.5 m of the
 // surveyed position, the strongest saddle (the centre of a checker target:
 // most negative Hessian determinant of the smoothed grey image), refined to
-// a fraction of a cell by OpenCV's cornerSubPix. A target whose saddle does
-// not stand out (weaker than a third of the window's contrast) is "not
-// located" rather than a guess.
+// a fraction of a cell by a quadratic fit. A target whose saddle does not
+// stand out (weaker than a third of the window's contrast) is "not located"
+// rather than a guess.
 json OrthoAtCheckPoints(const json& report, const fs::path& ortho, const GeoFrame& output,
                         const GeoFrame& deliverable) {
   json out = {{"points", json::array()},
@@ -391,9 +391,14 @@ json OrthoAtCheckPoints(const json& report, const fs::path& ortho, const GeoFram
       out["points"].push_back(e);
       continue;
     }
-    cv::Mat grey = (rgb[0] + rgb[1] + rgb[2]) / 3, f;
-    grey.convertTo(f, CV_32F);
-    cv::GaussianBlur(f, f, cv::Size(0, 0), 1.5);
+    // Grey in float: 8-bit sums saturate on the white squares and bend the edges.
+    cv::Mat grey(size, size, CV_32F, cv::Scalar(0)), f;
+    for (const cv::Mat& band : rgb) {
+      cv::Mat b32;
+      band.convertTo(b32, CV_32F, 1.0 / 3.0);
+      grey += b32;
+    }
+    cv::GaussianBlur(grey, f, cv::Size(0, 0), 1.5);
     cv::Mat dxx, dyy, dxy;
     cv::Sobel(f, dxx, CV_32F, 2, 0, 3);
     cv::Sobel(f, dyy, CV_32F, 0, 2, 3);
@@ -414,11 +419,40 @@ json OrthoAtCheckPoints(const json& report, const fs::path& ortho, const GeoFram
       out["points"].push_back(e);
       continue;
     }
-    std::vector<cv::Point2f> corner = {cv::Point2f(static_cast<float>(at.x), static_cast<float>(at.y))};
-    cv::cornerSubPix(grey, corner, cv::Size(4, 4), cv::Size(-1, -1),
-                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 0.01));
+    // Sub-pixel: the stationary point of a quadratic fitted (least squares)
+    // to the smoothed image over 7 x 7 cells, recentred until it settles; a
+    // checker's centre is an exact saddle of the smoothed image.
+    Eigen::Vector2d c(at.x, at.y);
+    bool settled = false;
+    for (int it = 0; it < 5 && !settled; ++it) {
+      const int cx = static_cast<int>(std::lround(c.x())), cy = static_cast<int>(std::lround(c.y()));
+      if (cx < 3 || cy < 3 || cx >= size - 3 || cy >= size - 3) break;
+      Eigen::Matrix<double, 49, 6> a;
+      Eigen::Matrix<double, 49, 1> b;
+      int k = 0;
+      for (int v = -3; v <= 3; ++v) {
+        for (int u = -3; u <= 3; ++u, ++k) {
+          a.row(k) << 1.0, u, v, u * u, u * v, v * v;
+          b(k) = f.at<float>(cy + v, cx + u);
+        }
+      }
+      const Eigen::Matrix<double, 6, 1> p = a.colPivHouseholderQr().solve(b);
+      Eigen::Matrix2d h;
+      h << 2 * p(3), p(4), p(4), 2 * p(5);
+      if (!(h.determinant() < 0)) break;  // not a saddle
+      const Eigen::Vector2d step = h.lu().solve(-Eigen::Vector2d(p(1), p(2)));
+      if (step.norm() > 3.0) break;
+      c = Eigen::Vector2d(cx, cy) + step;
+      settled = step.cwiseAbs().maxCoeff() <= 0.5;
+    }
+    if (!settled) {
+      e["located"] = false;
+      e["reason"] = "the target centre does not fit a saddle";
+      out["points"].push_back(e);
+      continue;
+    }
     // Pixel (i, j) centre is at i + 0.5 cells from the window's corner.
-    const double x = gt[0] + (x0 + corner[0].x + 0.5) * gt[1], y = gt[3] + (y0 + corner[0].y + 0.5) * gt[5];
+    const double x = gt[0] + (x0 + c.x() + 0.5) * gt[1], y = gt[3] + (y0 + c.y() + 0.5) * gt[5];
     const Eigen::Vector2d d(x - q.x(), y - q.y());
     e["located"] = true;
     e["d_m"] = {d.x(), d.y()};
