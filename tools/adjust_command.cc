@@ -13,6 +13,7 @@
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/directory_lock.h"
 #include "libphoto/base/error.h"
+#include "libphoto/pipeline/pipeline.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/report/report_json.h"
@@ -150,6 +151,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   nlohmann::json json = GeoreferenceReportJson(report, model);
   WriteTextFileAtomically(output / "report.json", json.dump(2) + "\n");
   WriteTextFileAtomically(output / "exterior_orientation.csv", ExteriorOrientationCsv(report));
+  WriteCamerasGpkg(report, output / "cameras.gpkg");
   ctx.Info(report.bundle.BriefReport());
   ctx.Info("wrote " + (output / "model").string() + ", " + (output / "report.json").string() + " and " +
            (output / "exterior_orientation.csv").string());

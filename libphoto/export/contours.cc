@@ -145,4 +145,55 @@ void WriteContours(const Raster& surface, const std::filesystem::path& path, con
   if (summary) *summary = s;
 }
 
+void WritePointsGpkg(const std::filesystem::path& path, const std::string& layer_name, const std::string& wkt,
+                     const std::string& description, const std::vector<std::string>& text_fields,
+                     const std::vector<std::string>& number_fields, const std::vector<GpkgPoint>& points) {
+  GDALAllRegister();
+  GDALDriver* gpkg = GetGDALDriverManager()->GetDriverByName("GPKG");
+  if (!gpkg) throw IoError(path.string(), "GDAL has no GeoPackage driver");
+  OGRSpatialReference srs;
+  const bool has_srs = !wkt.empty() && srs.importFromWkt(wkt.c_str()) == OGRERR_NONE;
+  if (has_srs) srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  const std::filesystem::path tmp = TemporaryPathFor(path).string() + ".gpkg";
+  std::filesystem::remove(tmp);
+  {
+    std::unique_ptr<GDALDataset> out(gpkg->Create(tmp.string().c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+    if (!out) throw IoError(tmp.string(), std::string("cannot create: ") + CPLGetLastErrorMsg());
+    const std::string desc = "DESCRIPTION=" + description;
+    const char* lco[] = {desc.c_str(), nullptr};
+    OGRLayer* layer = out->CreateLayer(layer_name.c_str(), has_srs ? &srs : nullptr, wkbPoint25D, const_cast<char**>(lco));
+    if (!layer) throw IoError(tmp.string(), std::string("cannot create the layer: ") + CPLGetLastErrorMsg());
+    for (const std::string& f : text_fields) {
+      OGRFieldDefn d(f.c_str(), OFTString);
+      if (layer->CreateField(&d) != OGRERR_NONE) throw IoError(tmp.string(), "cannot create field " + f);
+    }
+    for (const std::string& f : number_fields) {
+      OGRFieldDefn d(f.c_str(), OFTReal);
+      if (layer->CreateField(&d) != OGRERR_NONE) throw IoError(tmp.string(), "cannot create field " + f);
+    }
+    if (layer->StartTransaction() != OGRERR_NONE) throw IoError(tmp.string(), "cannot start a transaction");
+    for (const GpkgPoint& p : points) {
+      OGRFeature f(layer->GetLayerDefn());
+      OGRPoint point(p.xyz.x(), p.xyz.y(), p.xyz.z());
+      f.SetGeometry(&point);
+      for (size_t k = 0; k < text_fields.size() && k < p.text.size(); ++k) f.SetField(static_cast<int>(k), p.text[k].c_str());
+      for (size_t k = 0; k < number_fields.size() && k < p.numbers.size(); ++k) {
+        const int field = static_cast<int>(text_fields.size() + k);
+        if (std::isfinite(p.numbers[k])) {
+          f.SetField(field, p.numbers[k]);
+        } else {
+          f.SetFieldNull(field);
+        }
+      }
+      if (layer->CreateFeature(&f) != OGRERR_NONE) {
+        throw IoError(tmp.string(), std::string("cannot write a point: ") + CPLGetLastErrorMsg());
+      }
+    }
+    if (layer->CommitTransaction() != OGRERR_NONE) {
+      throw IoError(tmp.string(), std::string("cannot commit the points: ") + CPLGetLastErrorMsg());
+    }
+  }
+  std::filesystem::rename(tmp, path);
+}
+
 }  // namespace aerotri

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #pragma once
 
+// Vector deliverables through OGR (GeoPackage).
+//
 // Contour lines of an elevation model, written as a GeoPackage through GDAL
 // (GDALContourGenerateEx, OGR): one layer "contours" of line strings with
 // the CRS set, an `elevation` attribute (metres) and `index` (1 on every
@@ -13,7 +15,10 @@
 // (normalised convolution: no cell is pulled towards nodata), and lines
 // shorter than min_length_m are dropped.
 
+#include <Eigen/Core>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include "libphoto/export/raster.h"
 
@@ -38,5 +43,17 @@ double AutomaticContourInterval(const Raster& surface);
 
 void WriteContours(const Raster& surface, const std::filesystem::path& path, const ContourOptions& options,
                    ContourSummary* summary = nullptr);
+
+// A GeoPackage layer of 3D points (e.g. camera centres) with text and number
+// attributes, the CRS set and a description (gpkg_contents), atomically. A
+// NaN number is written as null.
+struct GpkgPoint {
+  Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
+  std::vector<std::string> text;
+  std::vector<double> numbers;
+};
+void WritePointsGpkg(const std::filesystem::path& path, const std::string& layer, const std::string& wkt,
+                     const std::string& description, const std::vector<std::string>& text_fields,
+                     const std::vector<std::string>& number_fields, const std::vector<GpkgPoint>& points);
 
 }  // namespace aerotri

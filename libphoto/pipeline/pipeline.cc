@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <set>
 #include <nlohmann/json.hpp>
@@ -23,6 +24,7 @@
 #include "libphoto/base/error.h"
 #include "libphoto/base/parallel.h"
 #include "libphoto/dense/dense_stereo.h"
+#include "libphoto/export/contours.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/pipeline/workspace.h"
 #include "libphoto/report/report_json.h"
@@ -358,6 +360,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     }
     WriteTextFileAtomically(o.workspace / "cameras.csv", csv.str());
     WriteTextFileAtomically(o.workspace / "exterior_orientation.csv", ExteriorOrientationCsv(georef));
+    WriteCamerasGpkg(georef, o.workspace / "cameras.gpkg");
   } else {
     Log(o, "warning: no GPS and no control points: the survey is not georeferenced "
            "(arbitrary frame and scale)");
@@ -538,6 +541,35 @@ void CleanUpIntermediates(const PipelineOptions& o) {
   fs::remove_all(depth);
   Log(o, "cleanup: removed " + depth.string() + " (the dense stage's depth maps, " + std::to_string(bytes >> 20) +
              " MB); the deliverables, features and matches stay");
+}
+
+void WriteCamerasGpkg(const GeoreferenceReport& r, const fs::path& path) {
+  Crs crs = Crs::FromString(r.crs);
+  if (crs.IsLocal() && r.local_origin) crs = crs.LocalAt(*r.local_origin);
+  const std::string z = crs.IsGeocentric() ? "geocentric Z"
+                        : crs.IsLocal()    ? "the local frame's z"
+                        : crs.HasVerticalDatum() ? "heights of the vertical datum of " + crs.Name()
+                                                 : "WGS84 ellipsoidal heights";
+  std::vector<GpkgPoint> points;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const CameraResult& c : r.cameras) {
+    GpkgPoint p;
+    p.xyz = c.position_crs;
+    p.text = {c.name};
+    p.numbers = {c.opk_deg.x(), c.opk_deg.y(), c.opk_deg.z()};
+    for (int k = 0; k < 3; ++k) p.numbers.push_back(c.has_precision ? c.sigma_position_m[k] : nan);
+    for (int k = 0; k < 3; ++k) p.numbers.push_back(c.has_precision ? c.sigma_opk_deg[k] : nan);
+    for (int k = 0; k < 3; ++k) p.numbers.push_back(c.has_prior ? c.d_enu_m[k] : nan);
+    points.push_back(p);
+  }
+  WritePointsGpkg(path, "cameras", crs.Wkt(),
+                  "aerotri camera centres in " + crs.Name() + "; z: " + z +
+                      "; omega, phi, kappa as in exterior_orientation.csv; gps_d*: adjusted minus GPS (east, "
+                      "north, up, m)",
+                  {"name"},
+                  {"omega_deg", "phi_deg", "kappa_deg", "sigma_x_m", "sigma_y_m", "sigma_z_m", "sigma_omega_deg",
+                   "sigma_phi_deg", "sigma_kappa_deg", "gps_de_m", "gps_dn_m", "gps_du_m"},
+                  points);
 }
 
 std::string RunPipeline(const PipelineOptions& o) {

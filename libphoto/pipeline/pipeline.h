@@ -126,6 +126,10 @@ std::string RunPipeline(const PipelineOptions& options);
 // options.cleanup's work, run after the report: removes OUTPUT/depth/ (the
 // dense stage's depth maps) and says how much it freed; nothing else.
 void CleanUpIntermediates(const PipelineOptions& options);
+// cameras.gpkg: the adjusted camera centres as a GeoPackage point layer in
+// the output CRS (GDAL and QGIS read its CRS), with omega / phi / kappa,
+// their posterior sigmas and the GPS residuals; the description says what z is.
+void WriteCamerasGpkg(const GeoreferenceReport& report, const std::filesystem::path& path);
 // report.json's status in a workspace, or "" before the georeference stage.
 std::string SurveyStatusOf(const std::filesystem::path& workspace);
 
