@@ -339,7 +339,13 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     const LocalFrame frame(georef.enu_origin);
     const Crs crs = *georef.output_crs;
     std::ostringstream csv;
-    csv << std::setprecision(12) << "name,x,y,z,lat_deg,lon_deg,h_ellipsoidal_m,gps_de_m,gps_dn_m,gps_du_m\n";
+    // The z column's name says what it is (GDAL / QGIS read x, y by name).
+    const std::string z_name = crs.IsGeocentric() ? "z_geocentric_m"
+                               : crs.IsLocal()    ? "z"
+                               : crs.HasVerticalDatum() ? "z_vertical_datum_m"
+                                                        : "z_ellipsoidal_m";
+    csv << std::setprecision(12) << "name,x,y," << z_name
+        << ",lat_deg,lon_deg,h_ellipsoidal_m,gps_de_m,gps_dn_m,gps_du_m\n";
     for (const Image& image : model.images) {
       const Geodetic g = frame.GeodeticFromEnu(image.pose.centre_in_world);
       const Eigen::Vector3d xyz = crs.FromGeodetic(g);
