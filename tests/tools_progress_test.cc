@@ -7,6 +7,12 @@
 #include <sstream>
 #include <string>
 
+#include <cpl_error.h>
+
+#include <thread>
+#include <vector>
+
+#include "tools/commands.h"
 #include "tools/tool_context.h"
 
 namespace aerotri {
@@ -57,6 +63,29 @@ TEST(Progress, PipeGetsLinesTerminalGetsOneRewrittenLine) {
   ToolContext quiet;
   quiet.quiet = true;
   EXPECT_FALSE(quiet.Progress("features"));
+}
+
+TEST(GdalMessages, ComeOutAsTheToolsWarningsFromAnyThread) {
+  std::ostringstream err;
+  ToolContext ctx;
+  ctx.err = &err;
+  ctx.quiet = true;  // warnings are shown even so
+  RouteGdalMessages(&ctx);
+  CPLError(CE_Warning, CPLE_AppDefined, "the filename extension should be '%s'", "gpkg");
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) threads.emplace_back([t] { CPLError(CE_Failure, CPLE_FileIO, "thread %d failed", t); });
+  for (auto& t : threads) t.join();
+  CPLDebug("GDAL", "debug output stays out");
+  RouteGdalMessages(nullptr);
+  CPLErrorReset();
+  const std::string text = err.str();
+  EXPECT_NE(text.find("warning: GDAL: the filename extension should be 'gpkg'\n"), std::string::npos) << text;
+  for (int t = 0; t < 4; ++t) {
+    EXPECT_NE(text.find("warning: GDAL: thread " + std::to_string(t) + " failed\n"), std::string::npos) << text;
+  }
+  EXPECT_EQ(text.find("debug"), std::string::npos);
+  EXPECT_EQ(text.find("Warning 1"), std::string::npos);
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 5);  // whole lines, none interleaved
 }
 
 }  // namespace

@@ -173,6 +173,10 @@ struct RunArgs {
   std::string dem_output;     // aerotri dem
   std::string stage = "all";  // which stage a stage subcommand runs
 };
+// GDAL's warnings and errors become the tool's "warning: GDAL: ..." lines
+// (thread-safe); null restores GDAL's default handler.
+void RouteGdalMessages(const ToolContext* ctx);
+
 void RegisterRunCommands(CLI::App& app, CommandAction* run);
 int RunPipelineCommand(const RunArgs& args, ToolContext& ctx);
 

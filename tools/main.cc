@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   ctx.rewrite_progress = ::isatty(STDERR_FILENO) != 0;
   ctx.command_line.assign(argv, argv + argc);
   app.add_flag("--quiet,-q", ctx.quiet, "Silence progress on stderr");
+  RouteGdalMessages(&ctx);
   app.set_version_flag("--version", VersionString());
   app.require_subcommand(1);
   app.fallthrough();  // --quiet also after the subcommand
