@@ -182,6 +182,32 @@ void ExpectThrowWith(F f, const std::string& text) {
 // The ingest stage as a module: photos in, a typed record out, the record
 // through ingest.json and back unchanged; a schema-1 record's focal prior
 // decided as before; a corrupt record refused naming the file.
+TEST(IngestStage, TruncatedJpegIsSkippedWithItsName) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "photos");
+  cv::Mat image(300, 400, CV_8UC3);
+  cv::randu(image, 0, 255);
+  WriteJpegWithExif(dir / "photos" / "whole.jpg", image, {{"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"}});
+  WriteJpegWithExif(dir / "photos" / "cut.jpg", image, {{"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"}});
+  WriteJpegWithExif(dir / "photos" / "padded.jpg", image, {{"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"}});
+  const auto size = std::filesystem::file_size(dir / "photos" / "cut.jpg");
+  std::filesystem::resize_file(dir / "photos" / "cut.jpg", size * 2 / 3);
+  std::ofstream(dir / "photos" / "padded.jpg", std::ios::app | std::ios::binary) << std::string(100, '\0');
+  IngestOptions o;
+  o.images_dir = dir / "photos";
+  const IngestRecord r = IngestSurveyImages(o, nullptr);
+  ASSERT_EQ(r.images.size(), 3u);
+  std::map<std::string, IngestedImage> by_name;
+  for (const auto& im : r.images) by_name[im.name] = im;
+  EXPECT_TRUE(by_name["whole.jpg"].usable);
+  EXPECT_TRUE(by_name["padded.jpg"].usable) << by_name["padded.jpg"].problem;
+  EXPECT_FALSE(by_name["cut.jpg"].usable);
+  EXPECT_NE(by_name["cut.jpg"].problem.find("truncated JPEG"), std::string::npos);
+  std::string warnings;
+  for (const auto& w : r.warnings) warnings += w + "\n";
+  EXPECT_NE(warnings.find("cut.jpg: truncated JPEG: it does not end with the end-of-image marker FF D9"), std::string::npos) << warnings;
+}
+
 TEST(IngestStage, TypedRecordRoundTripsAndRefusesCorruptFiles) {
   testing::TempDir dir;
   std::filesystem::create_directories(dir / "photos");

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <iomanip>
 #include <map>
 #include <set>
@@ -51,6 +52,28 @@ std::optional<GpsFix> FixOf(const std::string& name, const ImageMetadata& m,
     f.source = "exif+rtk";
   }
   return f;
+}
+
+// A JPEG cut short (an interrupted copy, a full card) still decodes: libjpeg
+// pads it with grey and says "Premature end of JPEG file" without a name.
+// Its end-of-image marker (FF D9) is then missing from the file's tail
+// (some cameras pad after it with 00 or FF bytes). "" when whole or not a JPEG.
+std::string JpegTruncation(const fs::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  if (ext != ".jpg" && ext != ".jpeg") return "";
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return "";
+  const std::streamoff size = in.tellg();
+  const std::streamoff tail = std::min<std::streamoff>(size, 4096);
+  std::string bytes(static_cast<size_t>(tail), '\0');
+  in.seekg(size - tail);
+  if (!in.read(bytes.data(), tail)) return "";
+  size_t end = bytes.size();
+  while (end > 0 && (bytes[end - 1] == '\0' || bytes[end - 1] == '\xFF')) --end;  // padding
+  if (end >= 2 && bytes[end - 2] == '\xFF' && bytes[end - 1] == '\xD9') return "";
+  return "truncated JPEG: it does not end with the end-of-image marker FF D9 (" + std::to_string(size) +
+         " bytes; an interrupted copy?)";
 }
 
 }  // namespace
@@ -137,6 +160,12 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
     } catch (const IoError& e) {
       im.problem = std::string("unreadable: ") + e.what();
       r.warnings.push_back(std::string(e.what()) + "; skipped");
+      r.images.push_back(im);
+      continue;
+    }
+    if (const std::string cut = JpegTruncation(files[k]); !cut.empty()) {
+      im.problem = cut;
+      r.warnings.push_back(files[k].string() + ": " + cut + "; skipped");
       r.images.push_back(im);
       continue;
     }
