@@ -182,7 +182,7 @@ void ExpectThrowWith(F f, const std::string& text) {
 // The ingest stage as a module: photos in, a typed record out, the record
 // through ingest.json and back unchanged; a schema-1 record's focal prior
 // decided as before; a corrupt record refused naming the file.
-TEST(IngestStage, TruncatedJpegIsSkippedWithItsName) {
+TEST(IngestStage, TruncatedJpegAndSymlinkLoopAreSkippedWithTheirNames) {
   testing::TempDir dir;
   std::filesystem::create_directories(dir / "photos");
   cv::Mat image(300, 400, CV_8UC3);
@@ -193,6 +193,8 @@ TEST(IngestStage, TruncatedJpegIsSkippedWithItsName) {
   const auto size = std::filesystem::file_size(dir / "photos" / "cut.jpg");
   std::filesystem::resize_file(dir / "photos" / "cut.jpg", size * 2 / 3);
   std::ofstream(dir / "photos" / "padded.jpg", std::ios::app | std::ios::binary) << std::string(100, '\0');
+  // A symbolic link loop among the photos: said and skipped, never fatal.
+  std::filesystem::create_symlink("loop.jpg", dir / "photos" / "loop.jpg");
   IngestOptions o;
   o.images_dir = dir / "photos";
   const IngestRecord r = IngestSurveyImages(o, nullptr);
@@ -206,6 +208,8 @@ TEST(IngestStage, TruncatedJpegIsSkippedWithItsName) {
   std::string warnings;
   for (const auto& w : r.warnings) warnings += w + "\n";
   EXPECT_NE(warnings.find("cut.jpg: truncated JPEG: it does not end with the end-of-image marker FF D9"), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find("loop.jpg: Too many levels of symbolic links (a symbolic link loop"), std::string::npos)
+      << warnings;
 }
 
 TEST(IngestStage, TypedRecordRoundTripsAndRefusesCorruptFiles) {

@@ -82,8 +82,17 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
   o.Check();
   if (!fs::is_directory(o.images_dir)) throw IoError(o.images_dir.string(), "not a folder of images");
   std::vector<fs::path> files;
+  std::vector<std::string> dead_links;  // a loop or a missing target: said, never fatal
   for (const auto& entry : fs::directory_iterator(o.images_dir)) {
-    if (entry.is_regular_file() && IsImageFileName(entry.path())) files.push_back(entry.path());
+    if (!IsImageFileName(entry.path())) continue;
+    std::error_code ec;
+    const bool regular = entry.is_regular_file(ec);
+    if (ec) {
+      dead_links.push_back(entry.path().string() + ": " + ec.message() + " (a symbolic link loop or a missing "
+                           "target); skipped");
+    } else if (regular) {
+      files.push_back(entry.path());
+    }
   }
   std::sort(files.begin(), files.end());
   if (files.empty()) {
@@ -113,6 +122,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
   }
 
   IngestRecord r;
+  r.warnings = dead_links;
   if (!unmatched.empty()) {
     r.warnings.push_back(o.gps_csv.string() + ": " + std::to_string(unmatched.size()) + " of " +
                          std::to_string(csv.size()) + " names match no photo: " + first_names(unmatched));
