@@ -4,6 +4,8 @@
 #include <glog/logging.h>
 #include <unistd.h>
 
+#include <csignal>
+
 #include <CLI/CLI.hpp>
 #include <iostream>
 #include <string>
@@ -22,6 +24,10 @@ int main(int argc, char** argv) {
       "Progress goes to stderr, data to stdout. Exit codes: 0 ok, 1 runtime/data error, "
       "2 usage error."};
   app.name("aerotri");
+  // A file-size limit (ulimit -f) or a quota then fails the write with EFBIG,
+  // which the writer reports naming the file, instead of SIGXFSZ killing the
+  // process with a core dump and no word.
+  std::signal(SIGXFSZ, SIG_IGN);
   ToolContext ctx;
   ctx.rewrite_progress = ::isatty(STDERR_FILENO) != 0;
   ctx.command_line.assign(argv, argv + argc);

@@ -61,10 +61,18 @@ void WriteFileAtomically(const fs::path& path,
   try {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw IoError(tmp.string(), std::string("cannot open for writing: ") + std::strerror(errno));
+    errno = 0;
     write(out);
     out.flush();
-    if (!out) throw IoError(tmp.string(), "write failed (disk full?)");
+    if (!out) {
+      // errno of the failed write: ENOSPC (disk full), EFBIG (file-size
+      // limit or quota), EIO. The product is named; its temporary goes.
+      const int e = errno;
+      throw IoError(path.string(), std::string("write failed: ") + (e ? std::strerror(e) : "stream error") +
+                                       " (disk full or a size limit?); nothing was kept of it");
+    }
     out.close();
+    if (!out) throw IoError(path.string(), std::string("write failed on close: ") + std::strerror(errno));
   } catch (...) {
     std::error_code ec;
     fs::remove(tmp, ec);
