@@ -84,17 +84,13 @@ std::string Trimmed(const std::string& line) {
 
 // The CRS of an OpenDroneMap geo.txt, when `line` (the file's first
 // meaningful line) is one: PROJ takes it, and it is not a CSV row or header.
-std::optional<Crs> GeoTxtCrs(const std::string& line) {
+std::optional<Crs> GeoTxtCrs(const std::string& line, const CrsResolver& resolve) {
   if (line.find_first_of(",;\t") != std::string::npos) return std::nullopt;
   std::istringstream words(line);
   std::string first, second;
   words >> first >> second;
   if (!second.empty() && ParseDouble(second)) return std::nullopt;  // "IMG_1.JPG 46.8 ..."
-  try {
-    return Crs::FromString(line);
-  } catch (const CrsError&) {
-    return std::nullopt;
-  }
+  return resolve(line);
 }
 
 // geo.txt: `image_name geo_x geo_y geo_z [yaw pitch roll] [horz_accuracy
@@ -208,7 +204,18 @@ std::map<std::string, GpsFix> ReadCsvLines(const std::vector<std::pair<int, std:
 
 std::map<std::string, GpsFix> ReadGpsFile(const std::filesystem::path& path, AltitudeReference reference,
                                           double sigma_h_m, double sigma_v_m) {
-  std::string text = ReadTextFile(path);
+  const CrsResolver proj = [](const std::string& definition) -> std::optional<Crs> {
+    try {
+      return Crs::FromString(definition);
+    } catch (const CrsError&) {
+      return std::nullopt;
+    }
+  };
+  return ParseGpsText(ReadTextFile(path), path.string(), reference, sigma_h_m, sigma_v_m, proj);
+}
+
+std::map<std::string, GpsFix> ParseGpsText(std::string text, const std::string& p, AltitudeReference reference,
+                                           double sigma_h_m, double sigma_v_m, const CrsResolver& resolve) {
   if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);  // a UTF-8 byte-order mark
   for (size_t k = 0; k < text.size(); ++k) {                   // CR alone ends a line too
     if (text[k] == '\r' && (k + 1 == text.size() || text[k + 1] != '\n')) text[k] = '\n';
@@ -222,9 +229,8 @@ std::map<std::string, GpsFix> ReadGpsFile(const std::filesystem::path& path, Alt
     line = Trimmed(line);
     if (!line.empty()) lines.emplace_back(number, line);
   }
-  const std::string p = path.string();
   if (!lines.empty()) {
-    if (const auto crs = GeoTxtCrs(lines.front().second)) {
+    if (const auto crs = GeoTxtCrs(lines.front().second, resolve)) {
       const int crs_line = lines.front().first;
       lines.erase(lines.begin());
       return ReadGeoTxt(lines, *crs, p, crs_line, reference, sigma_h_m, sigma_v_m);

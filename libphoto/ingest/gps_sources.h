@@ -19,10 +19,12 @@
 // Either way a UTF-8 byte-order mark and any line ending are accepted.
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "georef/crs.h"
 #include "georef/gps_fix.h"
 
 namespace aerotri {
@@ -38,5 +40,16 @@ std::map<std::string, GpsFix> GpsFromImages(const std::vector<std::string>& imag
 // Throws ParseError (file:line: expected ..., got ...) or IoError.
 std::map<std::string, GpsFix> ReadGpsFile(const std::filesystem::path& path, AltitudeReference reference,
                                           double sigma_h_m, double sigma_v_m);
+
+// ReadGpsFile's work on the text in memory (path names it in errors), with
+// CRS resolution kept apart from tokenising: `resolve` is asked for a
+// geo.txt's first line only when that line can be a CRS (no field
+// separators, no number in second place) and answers the CRS, or nothing
+// when it is not one (the file is then read as a CSV). ReadGpsFile resolves
+// through PROJ (Crs::FromString); the fuzz target through a fixed table, so
+// that the parsing is fuzzed at full speed rather than PROJ's name lookup.
+using CrsResolver = std::function<std::optional<Crs>(const std::string& definition)>;
+std::map<std::string, GpsFix> ParseGpsText(std::string text, const std::string& path, AltitudeReference reference,
+                                           double sigma_h_m, double sigma_v_m, const CrsResolver& resolve);
 
 }  // namespace aerotri
