@@ -858,5 +858,54 @@ TEST(Georeferencing, ControlOutsideTheSurveyIsAnErrorNamingThePoints) {
   for (const Finding& x : ok.findings) EXPECT_NE(x.code, "CONTROL_OUTSIDE_SURVEY");
 }
 
+TEST(Georeferencing, ControlNoisierThanStatedIsKeptEstimatedAndSaid) {
+  // Handheld-GPS control (1.5 m per axis) in a file that claims 2 / 3 cm.
+  SyntheticSurveyOptions so = SurveyOptions(91);
+  so.num_control_points = 12;
+  SyntheticGeorefOptions geo;
+  geo.seed = 91;
+  geo.gcp_noise_m = 1.5;
+  const SyntheticGeoref scene = MakeSyntheticGeoref(so, geo);
+  SparseModel model = ArbitraryFrame(scene.tie_model, 91);
+  GeoreferenceOptions o = Options();
+  o.gcp_sigma_h_m = 0.02;
+  o.gcp_sigma_v_m = 0.03;
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, {}, &scene.control, &scene.checks, o);
+  SCOPED_TRACE(report.bundle.BriefReport());
+  const auto& cp = report.control_precision;
+  ASSERT_TRUE(cp.measured);
+  EXPECT_EQ(cp.points, 12) << "every control point is kept";
+  EXPECT_EQ(report.helmert_inliers, 12);
+  // 12 points, 29 degrees of freedom: the estimate's own sigma is ~13 %.
+  EXPECT_NEAR(cp.estimated_m, 1.5, 0.3 * 1.5);
+  EXPECT_NEAR(cp.stated_m, std::sqrt((2 * 0.02 * 0.02 + 0.03 * 0.03) / 3), 1e-9);
+  EXPECT_TRUE(cp.adopted);
+  bool said = false, inconsistent = false;
+  for (const Finding& f : report.findings) {
+    said = said || f.code == "CONTROL_WEAKER_THAN_STATED";
+    inconsistent = inconsistent || f.code == "CONTROL_INCONSISTENT";
+  }
+  EXPECT_TRUE(said);
+  EXPECT_FALSE(inconsistent);
+  EXPECT_EQ(report.control_stats.count, 12);
+  // The check points carry the same 1.5 m noise (2.6 m in 3D), and the datum
+  // of 12 such points adds about a metre.
+  ASSERT_EQ(report.check_stats.count, 6);
+  EXPECT_GT(report.check_stats.rmse_3d_m, 1.5);
+  EXPECT_LT(report.check_stats.rmse_3d_m, 4.5);
+  EXPECT_LT(report.bundle.final_rms_px, 1.05 * 0.3 * std::sqrt(2.0)) << "the block is not bent to the control";
+}
+
+TEST(Georeferencing, ControlAsGoodAsStatedIsNotFlagged) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(92), {});  // 1 cm noise, 1 cm stated
+  SparseModel model = ArbitraryFrame(scene.tie_model, 92);
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, {}, &scene.control, &scene.checks, Options());
+  ASSERT_TRUE(report.control_precision.measured);
+  EXPECT_FALSE(report.control_precision.adopted);
+  EXPECT_LT(report.control_precision.estimated_m, 3.0 * report.control_precision.stated_m);
+  EXPECT_GT(report.control_precision.estimated_m, 0.3 * report.control_precision.stated_m);
+  for (const Finding& f : report.findings) EXPECT_NE(f.code, "CONTROL_WEAKER_THAN_STATED");
+}
+
 }  // namespace
 }  // namespace aerotri

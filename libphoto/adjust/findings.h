@@ -18,6 +18,7 @@
 //   GPS_OFFSET_NOT_ESTIMATED   warning  --gps-offset always without control to hold it
 //   CONTROL_INCONSISTENT       warning  control points left out of the initial fit
 //   CONTROL_RESIDUAL_HIGH      warning  control residuals beyond k sigma
+//   CONTROL_WEAKER_THAN_STATED warning  control scatter several times its stated sigmas (the estimate is used)
 //   CONTROL_OUTSIDE_SURVEY     error    surveyed points outside the photographed area (left out)
 //   CHECK_POINTS_FAR           warning  check points beyond what the datum allows;
 //                              error    when more than half of them are

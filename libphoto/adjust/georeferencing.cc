@@ -2,6 +2,7 @@
 #include "libphoto/adjust/georeferencing.h"
 
 #include <algorithm>
+#include <limits>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -615,8 +616,105 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   // With three or more non-collinear control points the datum is theirs.
   std::optional<SimilarityFit> fit;
   if (control_from.size() >= 3) {
-    const double threshold = threshold_for(control_max_sigma);
+    double threshold = threshold_for(control_max_sigma);
     fit = FitSimilarityRobust(control_from, control_to, threshold, 1);
+    // Control much noisier than its sigmas leaves few points within 5 sigma
+    // of any fit (a handheld-GPS kite survey stated at 2 cm kept 3 of 8). The
+    // data's own scatter then sets the threshold: 4 robust standard
+    // deviations per axis (the 99.9 % point of a 3D error is 4.03 sigma)
+    // about the current fit, refitted until it settles; a blunder far off
+    // the others' scatter still falls out.
+    const int n_control = static_cast<int>(control_from.size());
+    for (int round = 0; round < 4 && fit && options.helmert_inlier_m <= 0.0 && n_control >= 4 &&
+                        fit->num_inliers < n_control;
+         ++round) {
+      std::vector<double> r;
+      for (int k = 0; k < n_control; ++k) r.push_back((fit->transform.Apply(control_from[k]) - control_to[k]).norm());
+      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+      const double sigma_axis = r[r.size() / 2] / 1.538;  // median of a 3D Gaussian error's length
+      const double adaptive = 4.03 * sigma_axis;
+      if (!(adaptive > threshold * 1.01)) break;
+      threshold = adaptive;
+      auto wider = FitSimilarityRobust(control_from, control_to, threshold, 1);
+      if (!wider || wider->num_inliers <= fit->num_inliers) break;
+      fit = wider;
+    }
+    if (fit && fit->num_inliers >= 4) {
+      // The scatter per axis over the inliers (7 parameters fitted), first
+      // about the model as it came; that model is not yet adjusted (its
+      // intrinsics may be rough), so a scatter beyond 3 times the stated
+      // sigmas is confirmed on a free network: the block adjusted with the
+      // control so loose that it only places it, then fitted again.
+      std::vector<int> in;
+      double stated2 = 0.0;
+      for (int k = 0; k < n_control; ++k) {
+        if (!fit->inliers[k]) continue;
+        in.push_back(k);
+        const PositionPrior& p = *model->points[control_points[k]].prior;
+        stated2 += (2.0 * p.sigma_h_m * p.sigma_h_m + p.sigma_v_m * p.sigma_v_m) / 3.0;
+      }
+      const int n = static_cast<int>(in.size());
+      auto scatter = [&](const std::vector<Eigen::Vector3d>& from) {
+        std::vector<Eigen::Vector3d> a, b;
+        for (int k : in) a.push_back(from[k]), b.push_back(control_to[k]);
+        const auto s = FitSimilarity(a, b);
+        if (!s) return std::numeric_limits<double>::infinity();
+        double sum2 = 0.0;
+        for (size_t k = 0; k < a.size(); ++k) sum2 += (s->Apply(a[k]) - b[k]).squaredNorm();
+        return std::sqrt(sum2 / std::max(1, 3 * n - 7));
+      };
+      auto& cp = report.control_precision;
+      cp.measured = true;
+      cp.points = n;
+      cp.stated_m = std::sqrt(stated2 / n);
+      cp.estimated_m = scatter(control_from);
+      if (cp.estimated_m > 3.0 * cp.stated_m) {
+        ReportProgress(options.progress, 0.12, "control precision: free-network check");
+        SparseModel free = *model;
+        ApplySimilarity(fit->transform, &free);
+        for (int k : control_points) {
+          PositionPrior& p = *free.points[k].prior;
+          p.sigma_h_m = p.sigma_v_m = std::max(1000.0 * cp.stated_m, 100.0);
+          p.covariance.reset();
+          free.points[k].position = p.position;
+        }
+        BundleOptions loose = options.bundle;
+        if (options.auto_refine) loose.refine_intrinsics = IntrinsicsRefinement::kAll;
+        loose.function_tolerance = std::max(loose.function_tolerance, 1e-6);
+        loose.compute_precision = false;
+        loose.check_points_in_bundle = false;  // they are not placed yet; they judge nothing here
+        AdjustBundle(&free, loose);
+        std::vector<Eigen::Vector3d> adjusted(control_from.size());
+        for (size_t k = 0; k < control_points.size(); ++k) {
+          const auto t = TriangulatePoint(ViewsOf(free, control_points[k]));
+          adjusted[k] = t ? t->position : free.points[control_points[k]].position;
+        }
+        cp.estimated_m = scatter(adjusted);
+      }
+      if (cp.estimated_m > 3.0 * cp.stated_m && !options.keep_stated_control_sigmas) {
+        // Weigh the control by what it shows: every control prior scaled alike.
+        const double f = cp.estimated_m / cp.stated_m;
+        for (int k : control_points) {
+          PositionPrior& p = *model->points[k].prior;
+          p.sigma_h_m *= f;
+          p.sigma_v_m *= f;
+          if (p.covariance) *p.covariance *= f * f;
+        }
+        cp.adopted = true;
+      }
+      if (cp.estimated_m > 3.0 * cp.stated_m) {
+        report.findings.push_back(Finding::Warning(
+            "CONTROL_WEAKER_THAN_STATED",
+            "the control points scatter about the model by " + FormatMetres(cp.estimated_m) +
+                " per axis (" + std::to_string(n) + " points), " +
+                std::to_string(static_cast<int>(std::lround(cp.estimated_m / cp.stated_m))) + " times the " + FormatMetres(cp.stated_m) + " their sigmas state" +
+                (cp.adopted ? std::string("; the adjustment weighs them by the estimate (state it with "
+                                          "--gcp-sigma-h / --gcp-sigma-v, or keep the file's with "
+                                          "--keep-control-sigmas)")
+                            : std::string("; the file's sigmas were kept as asked: the block is bent to fit "
+                                          "the control"))));
+      }
+    }
     if (fit && fit->num_inliers >= 3) {
       report.datum_source = "control points (" + std::to_string(fit->num_inliers) + " of " +
                             std::to_string(control_from.size()) + " in the initial similarity)";

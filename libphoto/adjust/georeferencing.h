@@ -66,6 +66,9 @@ struct GeoreferenceOptions {
   // Helmert inlier threshold (m); 0 picks 5x the largest prior sigma, at
   // least 0.5 m.
   double helmert_inlier_m = 0.0;
+  // Keep the control file's sigmas even when the control scatters far more
+  // (GeoreferenceReport::control_precision); by default the estimate is used.
+  bool keep_stated_control_sigmas = false;
   GpsOffsetPolicy gps_offset = GpsOffsetPolicy::kAuto;
   QualityGates gates;
   // true: every intrinsic is refined where the block determines it: a focal
@@ -182,6 +185,20 @@ struct GeoreferenceReport {
   int helmert_inliers = 0;
   double helmert_rms_m = 0.0;
   GpsVersusControl gps_vs_control;
+  // The control's scatter about the model: the initial similarity over every
+  // control point consistent with the others, per axis, against the file's
+  // sigmas (their RMS over the three axes). Control several times noisier
+  // than it claims (handheld GPS stated as RTK) would bend the block to fit
+  // it and push its own marks out as outliers; from 3 times the stated
+  // figure the adjustment weighs the control by the estimate instead, and
+  // says so (CONTROL_WEAKER_THAN_STATED).
+  struct ControlPrecision {
+    bool measured = false;  // 4 or more control points in the fit
+    int points = 0;
+    double stated_m = 0.0;
+    double estimated_m = 0.0;
+    bool adopted = false;
+  } control_precision;
   BlockGeometry geometry;         // after the initial similarity
   bool check_points_in_bundle = false;  // check points as free points of the bundle
   bool refinement_auto = true;    // refinement chosen (true) or given by the user

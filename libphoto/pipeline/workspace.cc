@@ -144,6 +144,7 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"crs", g.output_crs},
           {"gcp_sigma_h_m", g.gcp_sigma_h_m},
           {"gcp_sigma_v_m", g.gcp_sigma_v_m},
+          {"keep_control_sigmas", g.keep_stated_control_sigmas},
           {"gps_offset", ToString(g.gps_offset)},
           {"refine", refine},
           {"loss", ToString(g.bundle.loss)},

@@ -314,6 +314,15 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   auto enu = [](const Eigen::Vector3d& v) {
     return nlohmann::json{{"e_m", v.x()}, {"n_m", v.y()}, {"u_m", v.z()}};
   };
+  const auto& cp = r.control_precision;
+  if (cp.measured) {
+    j["control_precision"] = {{"note", "control scatter about the model per axis (free network), against the "
+                                       "file's sigmas"},
+                              {"points", cp.points},
+                              {"stated_m", cp.stated_m},
+                              {"estimated_m", cp.estimated_m},
+                              {"adopted", cp.adopted}};
+  }
   const GpsVersusControl& versus = r.gps_vs_control;
   if (versus.measured) {
     j["gps_vs_control"] = {{"note", "GPS minus the camera centres of the control-only initial fit"},
