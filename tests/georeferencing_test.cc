@@ -907,5 +907,31 @@ TEST(Georeferencing, ControlAsGoodAsStatedIsNotFlagged) {
   for (const Finding& f : report.findings) EXPECT_NE(f.code, "CONTROL_WEAKER_THAN_STATED");
 }
 
+TEST(Georeferencing, OneTargetLabelledAsTwoPointsIsNamed) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(93), {});
+  GcpFile control = scene.control;
+  // The first mark of point 0 copied to point 1 (same photo, same pixel).
+  ASSERT_GE(control.points.size(), 2u);
+  GcpMeasurement copy = control.points[0].measurements.at(0);
+  copy.line = 999;
+  control.points[1].measurements.push_back(copy);
+  SparseModel model = ArbitraryFrame(scene.tie_model, 93);
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, scene.gps, &control, &scene.checks, Options());
+  const Finding* dup = nullptr;
+  for (const Finding& f : report.findings) {
+    if (f.code == "MARK_DUPLICATED") dup = &f;
+  }
+  ASSERT_NE(dup, nullptr);
+  const std::string names = control.points[0].name + "/" + control.points[1].name + " in " + copy.image;
+  EXPECT_NE(dup->message.find(names), std::string::npos) << dup->message;
+  EXPECT_NE(dup->message.find(":999"), std::string::npos) << dup->message;
+  ASSERT_EQ(dup->items.size(), 1u);
+  // Clean files say nothing.
+  SparseModel clean = ArbitraryFrame(scene.tie_model, 93);
+  for (const Finding& f : GeoreferenceAndAdjust(&clean, scene.gps, &scene.control, &scene.checks, Options()).findings) {
+    EXPECT_NE(f.code, "MARK_DUPLICATED");
+  }
+}
+
 }  // namespace
 }  // namespace aerotri

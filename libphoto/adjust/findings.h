@@ -25,6 +25,7 @@
 //   PRIORS_INCONSISTENT        warning  priors left out of the initial fit
 //   DOME                       warning  vertical residuals domed across the block
 //   MARK_BLUNDER               warning  Baarda's w-test rejects a target mark (point, image)
+//   MARK_DUPLICATED            warning  one target labelled as two points in one photo
 //   PRECISION_NOT_COMPUTED     warning  posterior sigmas and the w-test are missing (why)
 //   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model

@@ -345,6 +345,45 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   std::optional<SparseModel> start;
   if (options.leave_one_out) start = *model;
 
+  // One target labelled as two points: marks of different points within
+  // 2 px of each other in one photo (a copy-paste in the control file). Said
+  // with both names and the lines; the adjustment cannot tell which is right.
+  {
+    struct Mark {
+      std::string point, file;
+      int line;
+      Eigen::Vector2d xy;
+    };
+    std::map<std::string, std::vector<Mark>> by_image;
+    for (const GcpFile* f : {control, checks}) {
+      if (!f) continue;
+      for (const GroundPoint& p : f->points) {
+        for (const GcpMeasurement& m : p.measurements) by_image[m.image].push_back({p.name, f->path, m.line, m.xy_px});
+      }
+    }
+    std::vector<std::string> items, lines;
+    for (const auto& [image, marks] : by_image) {
+      for (size_t a = 0; a < marks.size(); ++a) {
+        for (size_t b = a + 1; b < marks.size(); ++b) {
+          if (marks[a].point == marks[b].point || (marks[a].xy - marks[b].xy).norm() > 2.0) continue;
+          items.push_back(marks[a].point + "/" + marks[b].point + " in " + image);
+          lines.push_back(marks[a].file + ":" + std::to_string(marks[a].line) + " and " + marks[b].file + ":" +
+                          std::to_string(marks[b].line));
+        }
+      }
+    }
+    if (!items.empty()) {
+      std::string text;
+      for (size_t k = 0; k < items.size() && k < 5; ++k) text += (k ? "; " : "") + items[k] + " (" + lines[k] + ")";
+      report.findings.push_back(Finding::Warning(
+          "MARK_DUPLICATED",
+          std::to_string(items.size()) + " target mark(s) labelled as two different points in one photo, within "
+          "2 px of each other: " + text + (items.size() > 5 ? "; ..." : "") +
+              "; one label is wrong (the w-test names the mark that fits worse)",
+          items));
+    }
+  }
+
   // 1. Surveyed points in WGS84 (in a local frame: on its exact stand-in,
   // Crs::IsLocal()).
   std::vector<SurveyedPoint> surveyed;
