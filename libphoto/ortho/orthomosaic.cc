@@ -184,8 +184,6 @@ void PrepareView(View& v, const cv::Mat& photo, const Grid& coarse, const std::v
   v.zbuffer = cv::Mat((cam.height + kZbufferScale - 1) / kZbufferScale, (cam.width + kZbufferScale - 1) / kZbufferScale,
                       CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
   const double focal = cam.params.empty() ? 1000.0 : cam.params[0];
-  double depth_sum = 0;
-  int depth_n = 0;
   for (int j = v.bbox.y; j < v.bbox.y + v.bbox.height; ++j) {
     for (int i = v.bbox.x; i < v.bbox.x + v.bbox.width; ++i) {
       const size_t c = static_cast<size_t>(j) * coarse.width + i;
@@ -203,15 +201,11 @@ void PrepareView(View& v, const cv::Mat& photo, const Grid& coarse, const std::v
           z = std::min(z, static_cast<float>(pc.z()));
         }
       }
-      depth_sum += pc.z();
-      ++depth_n;
     }
   }
   // A ground cell hides behind its neighbour only by more than the coarse
   // grid's own relief step.
   v.depth_tolerance = 1.5 * coarse.res;
-  (void)depth_sum;
-  (void)depth_n;
 
   v.colour = cv::Mat(v.bbox.size(), CV_32FC3, cv::Scalar(0, 0, 0));
   v.valid = cv::Mat(v.bbox.size(), CV_8U, cv::Scalar(0));

@@ -717,7 +717,7 @@ bool RunOrthoStage(const PipelineOptions& o) {
   }
   // What the ortho depends on: its options and the surface it was drawn on.
   json fingerprint = OrthoFingerprint(o);
-  fingerprint["surface_bytes"] = fs::file_size(surface_path);
+  fingerprint["surface"] = ContentHash(surface_path);
   fingerprint["sparse"] = ContentHash(o.workspace / "georeferenced" / "images.txt");
   if (fs::exists(path) && fs::exists(record) && !o.force) {
     const json recorded = ReadJson(record, "ortho");
