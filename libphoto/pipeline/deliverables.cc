@@ -156,16 +156,39 @@ struct DsmPreview {
   json info;
 };
 
-DsmPreview DsmPreviewPng(const fs::path& dsm, int max_size) {
-  GDALAllRegister();
-  DsmPreview out;
-  GDALDatasetH src = GDALOpen(dsm.string().c_str(), GA_ReadOnly);
-  if (!src) return out;
-  const int w = GDALGetRasterXSize(src), h = GDALGetRasterYSize(src);
+// A raster opened for a preview at most max_size pixels wide: its size, the
+// preview's, and what a preview's scale bar and corner coordinates need.
+struct PreviewSource {
+  GDALDatasetH dataset = nullptr;  // the caller closes it
+  int w = 0, h = 0, pw = 0, ph = 0;
   double gt[6] = {0, 1, 0, 0, 0, 1};
-  GDALGetGeoTransform(src, gt);
-  const double s = std::min(1.0, static_cast<double>(max_size) / std::max(w, h));
-  const int pw = std::max(1, static_cast<int>(w * s)), ph = std::max(1, static_cast<int>(h * s));
+  json Info() const {
+    return {{"width_px", pw},        {"height_px", ph},  {"metres_per_px", std::abs(gt[1]) * w / pw},
+            {"x_min", gt[0]},        {"y_max", gt[3]},   {"x_max", gt[0] + w * gt[1]},
+            {"y_min", gt[3] + h * gt[5]}};
+  }
+};
+
+PreviewSource OpenForPreview(const fs::path& path, int max_size) {
+  GDALAllRegister();
+  PreviewSource p;
+  p.dataset = GDALOpen(path.string().c_str(), GA_ReadOnly);
+  if (!p.dataset) return p;
+  p.w = GDALGetRasterXSize(p.dataset);
+  p.h = GDALGetRasterYSize(p.dataset);
+  GDALGetGeoTransform(p.dataset, p.gt);
+  const double s = std::min(1.0, static_cast<double>(max_size) / std::max(p.w, p.h));
+  p.pw = std::max(1, static_cast<int>(p.w * s));
+  p.ph = std::max(1, static_cast<int>(p.h * s));
+  return p;
+}
+
+DsmPreview DsmPreviewPng(const fs::path& dsm, int max_size) {
+  DsmPreview out;
+  const PreviewSource source = OpenForPreview(dsm, max_size);
+  GDALDatasetH src = source.dataset;
+  if (!src) return out;
+  const int pw = source.pw, ph = source.ph;
   const std::string sw = std::to_string(pw), sh = std::to_string(ph);
   const char* tr_args[] = {"-of", "MEM", "-outsize", sw.c_str(), sh.c_str(), "-r", "average", nullptr};
   GDALTranslateOptions* tr = GDALTranslateOptionsNew(const_cast<char**>(tr_args), nullptr);
@@ -228,16 +251,10 @@ DsmPreview DsmPreviewPng(const fs::path& dsm, int max_size) {
   out.png.assign(reinterpret_cast<const char*>(bytes), static_cast<size_t>(length));
   CPLFree(bytes);
   VSIUnlink((vsi + ".aux.xml").c_str());
-  out.info = {{"width_px", pw},
-              {"height_px", ph},
-              {"metres_per_px", std::abs(gt[1]) * w / pw},
-              {"z_low_m", lo},
-              {"z_high_m", hi},
-              {"z_range", "2nd to 98th percentile of the heights"},
-              {"x_min", gt[0]},
-              {"y_max", gt[3]},
-              {"x_max", gt[0] + w * gt[1]},
-              {"y_min", gt[3] + h * gt[5]}};
+  out.info = source.Info();
+  out.info["z_low_m"] = lo;
+  out.info["z_high_m"] = hi;
+  out.info["z_range"] = "2nd to 98th percentile of the heights";
   return out;
 }
 
@@ -295,28 +312,20 @@ json Coverage(const SparseModel& model, const Raster& dsm, const GeoFrame& g) {
 // A preview of the orthomosaic, at most max_size pixels wide (GDAL reads its
 // overviews), transparent cells white; with what its scale bar needs.
 DsmPreview OrthoPreviewPng(const fs::path& ortho, int max_size) {
-  GDALAllRegister();
   DsmPreview out;
-  GDALDatasetH src = GDALOpen(ortho.string().c_str(), GA_ReadOnly);
+  const PreviewSource source = OpenForPreview(ortho, max_size);
+  GDALDatasetH src = source.dataset;
   if (!src) return out;
-  const int w = GDALGetRasterXSize(src), h = GDALGetRasterYSize(src);
-  double gt[6] = {0, 1, 0, 0, 0, 1};
-  GDALGetGeoTransform(src, gt);
-  const double s = std::min(1.0, static_cast<double>(max_size) / std::max(w, h));
-  const int pw = std::max(1, static_cast<int>(w * s)), ph = std::max(1, static_cast<int>(h * s));
-  cv::Mat rgb(ph, pw, CV_8UC3), alpha(ph, pw, CV_8U, cv::Scalar(255));
+  const int w = source.w, h = source.h, pw = source.pw, ph = source.ph;
   GDALRasterIOExtraArg extra;
   INIT_RASTERIO_EXTRA_ARG(extra);
   extra.eResampleAlg = GRIORA_Average;
+  cv::Mat bgr[3], alpha(ph, pw, CV_8U, cv::Scalar(255));
   bool ok = true;
   for (int b = 0; b < 3 && ok; ++b) {
-    cv::Mat band(ph, pw, CV_8U);
-    ok = GDALRasterIOEx(GDALGetRasterBand(src, b + 1), GF_Read, 0, 0, w, h, band.data, pw, ph, GDT_Byte, 0, 0,
+    bgr[2 - b] = cv::Mat(ph, pw, CV_8U);  // OpenCV's order
+    ok = GDALRasterIOEx(GDALGetRasterBand(src, b + 1), GF_Read, 0, 0, w, h, bgr[2 - b].data, pw, ph, GDT_Byte, 0, 0,
                         &extra) == CE_None;
-    cv::Mat channels[3];
-    cv::split(rgb, channels);
-    band.copyTo(channels[2 - b]);  // BGR for OpenCV
-    cv::merge(channels, 3, rgb);
   }
   // The alpha band, or the mask of a JPEG COG.
   GDALRasterBandH mask = GDALGetRasterCount(src) >= 4 ? GDALGetRasterBand(src, 4)
@@ -326,17 +335,13 @@ DsmPreview OrthoPreviewPng(const fs::path& ortho, int max_size) {
   }
   GDALClose(src);
   if (!ok) return out;
+  cv::Mat rgb;
+  cv::merge(bgr, 3, rgb);
   rgb.setTo(cv::Scalar(255, 255, 255), alpha < 128);
   std::vector<unsigned char> png;
   if (!cv::imencode(".png", rgb, png)) return out;
   out.png.assign(png.begin(), png.end());
-  out.info = {{"width_px", pw},
-              {"height_px", ph},
-              {"metres_per_px", std::abs(gt[1]) * w / pw},
-              {"x_min", gt[0]},
-              {"y_max", gt[3]},
-              {"x_max", gt[0] + w * gt[1]},
-              {"y_min", gt[3] + h * gt[5]}};
+  out.info = source.Info();
   return out;
 }
 
