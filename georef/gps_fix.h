@@ -13,6 +13,7 @@
 // explicit choice; EGM96 heights become ellipsoidal through PROJ's
 // egm96_15.gtx (h = H + N).
 
+#include <limits>
 #include <string>
 
 #include "georef/local_frame.h"
@@ -33,6 +34,9 @@ struct GpsFix {
   double sigma_h_m = kDefaultGpsSigmaH;
   double sigma_v_m = kDefaultGpsSigmaV;
   std::string source;  // "exif", "exif+rtk", "csv"
+  // Capture time (seconds on the camera's clock, any epoch; only differences
+  // are used: the GNSS drift model, flights split at long gaps). NaN: unknown.
+  double time_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Converts an altitude in the given reference to WGS84 ellipsoidal height.

@@ -933,5 +933,101 @@ TEST(Georeferencing, OneTargetLabelledAsTwoPointsIsNamed) {
   }
 }
 
+// The angle (degrees) between two cam_from_world rotations.
+double RotationAngleDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return Eigen::AngleAxisd(a.normalized() * b.normalized().conjugate()).angle() * 180.0 / M_PI;
+}
+
+// A consumer drone's altitude drifting by 100 m over the flight, GPS only
+// (the image sigma stated at 1 px for 0.3 px noise: the drift's sigma must
+// rest on the GPS's own scatter, not on the tie points'):
+// a similarity to those positions tilts the block by tens of degrees; the
+// nadir attitude and the drift model keep every camera within 1° of its
+// true attitude and recover the drift rate within its sigma.
+TEST(Georeferencing, GpsAltitudeDriftIsEstimatedAndDoesNotTiltTheBlock) {
+  SyntheticGeorefOptions georef;
+  georef.gps_drift_m = Eigen::Vector3d(0.0, 0.0, 100.0);
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(41), georef);
+  SparseModel model = ArbitraryFrame(scene.tie_model, 41);
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, scene.gps, nullptr, &scene.checks, Options());
+  SCOPED_TRACE(report.bundle.BriefReport());
+  SCOPED_TRACE(report.gps_drift.note);
+  const GpsDriftReport& drift = report.gps_drift;
+  // The case is hard: the GPS alone would tilt the block by tens of degrees.
+  EXPECT_GT(drift.gps_fit_tilt_deg, 10.0);
+  ASSERT_TRUE(drift.estimated);
+  EXPECT_TRUE(drift.nadir_prior);
+  EXPECT_FALSE(drift.axes[0]);
+  EXPECT_FALSE(drift.axes[1]);
+  ASSERT_TRUE(drift.axes[2]);
+  ASSERT_EQ(drift.flights.size(), 1u);
+  const double duration = georef.seconds_per_photo * (scene.survey.truth.images.size() - 1);
+  EXPECT_NEAR(drift.flights[0].duration_s, duration, 1e-6);
+  const double true_rate = 100.0 / duration;
+  const GpsDriftReport::Flight& f = drift.flights[0];
+  ASSERT_GT(f.rate_sigma.z(), 0.0);
+  // Within 3 sigma of the truth, and the sigma honest (not inflated to pass).
+  EXPECT_LT(std::abs(f.rate_m_per_s.z() - true_rate), 3.0 * f.rate_sigma.z());
+  EXPECT_LT(f.rate_sigma.z(), 0.05 * true_rate);
+  // Every camera within 1° of its true attitude (the ENU frames of the truth
+  // and of the adjustment differ by the distance between their origins:
+  // thousandths of a degree).
+  std::map<std::string, const Image*> truth;
+  for (const Image& image : scene.survey.truth.images) truth[image.name] = &image;
+  double worst = 0.0;
+  for (const Image& image : model.images) {
+    if (!image.registered) continue;
+    worst = std::max(worst, RotationAngleDeg(image.pose.cam_from_world, truth.at(image.name)->pose.cam_from_world));
+  }
+  EXPECT_LT(worst, 1.0);
+  EXPECT_LT(report.tilt.mean_axis_tilt_deg, 1.0);
+  bool said = false;
+  for (const Finding& finding : report.findings) {
+    said |= finding.code == "GPS_DRIFT";
+    EXPECT_NE(finding.code, "CAMERA_ATTITUDE_IMPLAUSIBLE");
+  }
+  EXPECT_TRUE(said);
+}
+
+// With control the drift is measured against the control datum: estimated,
+// the GPS kept (not rejected as inconsistent), the check points at the
+// centimetre level.
+TEST(Georeferencing, GpsDriftUnderControlIsEstimatedAndTheGpsKept) {
+  SyntheticGeorefOptions georef;
+  georef.gps_drift_m = Eigen::Vector3d(0.0, 0.0, 100.0);
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(42), georef);
+  SparseModel model = ArbitraryFrame(scene.tie_model, 42);
+  const GeoreferenceReport report =
+      GeoreferenceAndAdjust(&model, scene.gps, &scene.control, &scene.checks, Options());
+  SCOPED_TRACE(report.bundle.BriefReport());
+  SCOPED_TRACE(report.gps_drift.note);
+  const GpsDriftReport& drift = report.gps_drift;
+  ASSERT_TRUE(drift.estimated);
+  EXPECT_FALSE(drift.nadir_prior);
+  ASSERT_EQ(drift.flights.size(), 1u);
+  const double true_rate = 100.0 / (georef.seconds_per_photo * (scene.survey.truth.images.size() - 1));
+  const GpsDriftReport::Flight& f = drift.flights[0];
+  ASSERT_GT(f.rate_sigma.z(), 0.0);
+  EXPECT_LT(std::abs(f.rate_m_per_s.z() - true_rate), 3.0 * f.rate_sigma.z());
+  EXPECT_LE(report.gps_vs_control.rejected.size(), 2u);
+  ASSERT_EQ(report.check_stats.count, 6);
+  EXPECT_LT(report.check_stats.rmse_3d_m, 0.08);
+}
+
+// Clean GPS: tested, no drift found, no attitude prior (a false drift would
+// cost the GPS its say in the tilt).
+TEST(Georeferencing, CleanGpsIsNotTakenForADrift) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(43), {});
+  SparseModel model = ArbitraryFrame(scene.tie_model, 43);
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, scene.gps, nullptr, &scene.checks, Options());
+  SCOPED_TRACE(report.gps_drift.note);
+  EXPECT_TRUE(report.viewing.nadir) << report.viewing.reason;
+  EXPECT_TRUE(report.gps_drift.tested);
+  EXPECT_FALSE(report.gps_drift.estimated);
+  EXPECT_FALSE(report.gps_drift.nadir_prior);
+  EXPECT_LT(report.gps_drift.gps_fit_tilt_deg, 3.0);
+  EXPECT_LT(report.tilt.mean_axis_tilt_deg, 3.0);
+}
+
 }  // namespace
 }  // namespace aerotri

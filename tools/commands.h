@@ -117,6 +117,7 @@ struct SimulateArgs {
   int buildings = 0;
   double gps_sigma_h_m = 2.0;
   double gps_sigma_v_m = 4.0;
+  double gps_drift_v_m = 0.0;
   int control = 8;
   int checks = 6;
   double gcp_noise_m = 0.01;

@@ -32,6 +32,10 @@ void RegisterSimulateCommand(CLI::App& app, CommandAction* run) {
       ->check(CLI::Range(0, 200))->capture_default_str();
   cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--gps-drift-v", a->gps_drift_v_m,
+                  "GPS altitude drift over the flight (metres, linear in time from the first photo: a consumer "
+                  "drone's barometric drift)")
+      ->capture_default_str();
   cmd->add_option("--control", a->control, "Number of ground control points")->check(CLI::Range(0, 100))->capture_default_str();
   cmd->add_option("--checks", a->checks, "Number of check points")->check(CLI::Range(0, 100))->capture_default_str();
   cmd->add_option("--gcp-noise", a->gcp_noise_m, "Survey noise of control and check points (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
@@ -67,6 +71,7 @@ int RunSimulate(const SimulateArgs& a, ToolContext& ctx) {
   o.georef.gps_sigma_h_m = a.gps_sigma_h_m;
   o.georef.gps_sigma_v_m = a.gps_sigma_v_m;
   o.georef.gcp_noise_m = a.gcp_noise_m;
+  o.georef.gps_drift_m = Eigen::Vector3d(0.0, 0.0, a.gps_drift_v_m);
   o.georef.crs = a.crs;
   o.georef.seed = a.seed;
   {

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -144,6 +145,8 @@ struct RoundResult {
   int num_gcp = 0;
   int skipped_points = 0;
   bool offset_estimated = false;
+  bool drift_estimated = false;
+  int num_nadir = 0;
   double setup_s = 0.0;
   std::vector<IntrinsicsPrecision> precision;
   std::string covariance_note;
@@ -304,7 +307,8 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
                                    std::vector<std::array<double, 4>>& rotations,
                                    const std::vector<std::pair<ceres::ResidualBlockId, int>>& mark_blocks,
                                    const std::function<ceres::LossFunction*(double)>& loss_for, double mark_sigma,
-                                   const BundleOptions& options, double* gps_offset) {
+                                   const BundleOptions& options, double* gps_offset,
+                                   std::vector<Eigen::Vector3d>* gps_drift) {
   const auto start = Clock::now();
   BundlePrecision out;
   internal::PrecisionProblem pp;
@@ -336,6 +340,8 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
   }
   for (Camera& camera : model->cameras) add_reduced(camera.params.data());
   const int offset_slot = add_reduced(gps_offset);
+  std::vector<int> drift_slot;
+  for (Eigen::Vector3d& d : *gps_drift) drift_slot.push_back(add_reduced(d.data()));
 
   std::vector<int> mark_observation;
   std::vector<double> mark_sigma_of;
@@ -435,6 +441,21 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     out.has_gps_offset = true;
     out.gps_offset_cov = block(offset_slot);
   }
+  for (int slot : drift_slot) {
+    // Held axes have no tangent: their rows and columns stay zero.
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    if (slot >= 0) {
+      const int o = solution.reduced_offset[slot];
+      std::vector<int> axes;
+      for (int a = 0; a < 3; ++a) {
+        if (options.gps_drift_axes[a]) axes.push_back(a);
+      }
+      for (size_t r = 0; r < axes.size(); ++r) {
+        for (size_t c = 0; c < axes.size(); ++c) cov(axes[r], axes[c]) = solution.reduced_cov(o + r, o + c);
+      }
+    }
+    out.gps_drift_cov.push_back(cov);
+  }
   for (size_t m = 0; m < solution.marks.size(); ++m) {
     const internal::MarkCofactor& c = solution.marks[m];
     MarkTest t;
@@ -530,7 +551,7 @@ void FillCeresSummary(const DenseSchurSummary& s, ceres::Solver::Summary* out) {
 }
 
 RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
-                      double* gps_offset, bool precision_pass = false) {
+                      double* gps_offset, std::vector<Eigen::Vector3d>* gps_drift, bool precision_pass = false) {
   const auto setup_start = Clock::now();
   RoundResult result;
   const auto per_point = model->ObservationsPerPoint();
@@ -798,11 +819,27 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
                           point.role == PointRole::kControl && point.prior.has_value();
   }
   if (options.use_gps_priors) {
+    std::set<int> drifting_flights;
     for (size_t i = 0; i < num_images; ++i) {
       Image& image = model->images[i];
       if (!image_used[i] || !image.gps_prior) continue;
-      if (!options.gnss_lever_arm_m.isZero()) {
-        const PositionPrior& p = *image.gps_prior;
+      const PositionPrior& p = *image.gps_prior;
+      const bool drift = options.estimate_gps_drift && p.flight >= 0 &&
+                         p.flight < static_cast<int>(gps_drift->size());
+      if (drift) {
+        // Offset block always present (held below unless estimated).
+        double* rate = (*gps_drift)[p.flight].data();
+        if (!options.gnss_lever_arm_m.isZero()) {
+          problem.AddResidualBlock(MakeDriftLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
+                                                              options.gnss_lever_arm_m, p.time_from_flight_s),
+                                   nullptr, rotations[i].data(), image.pose.centre_in_world.data(), gps_offset, rate);
+        } else {
+          problem.AddResidualBlock(
+              new DriftPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m, p.time_from_flight_s), nullptr,
+              image.pose.centre_in_world.data(), gps_offset, rate);
+        }
+        drifting_flights.insert(p.flight);
+      } else if (!options.gnss_lever_arm_m.isZero()) {
         ceres::CostFunction* cost = MakeLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
                                                           options.gnss_lever_arm_m, options.estimate_gps_offset);
         if (options.estimate_gps_offset) {
@@ -811,24 +848,48 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
           problem.AddResidualBlock(cost, nullptr, rotations[i].data(), image.pose.centre_in_world.data());
         }
       } else if (options.estimate_gps_offset) {
-        problem.AddResidualBlock(new OffsetPositionPriorCost(image.gps_prior->position,
-                                                             image.gps_prior->sigma_h_m,
-                                                             image.gps_prior->sigma_v_m),
-                                 nullptr, image.pose.centre_in_world.data(), gps_offset);
+        problem.AddResidualBlock(new OffsetPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr,
+                                 image.pose.centre_in_world.data(), gps_offset);
       } else {
-        problem.AddResidualBlock(new PositionPriorCost(image.gps_prior->position,
-                                                       image.gps_prior->sigma_h_m,
-                                                       image.gps_prior->sigma_v_m),
-                                 nullptr, image.pose.centre_in_world.data());
+        problem.AddResidualBlock(new PositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr,
+                                 image.pose.centre_in_world.data());
       }
       ++result.num_gps;
     }
-    if (options.estimate_gps_offset && problem.HasParameterBlock(gps_offset)) {
-      if (num_control_priors == 0) {
-        problem.SetParameterBlockConstant(gps_offset);
-      } else {
+    if (problem.HasParameterBlock(gps_offset)) {
+      if (options.estimate_gps_offset && num_control_priors > 0) {
         result.offset_estimated = true;
+      } else {
+        problem.SetParameterBlockConstant(gps_offset);
       }
+    }
+    // Each drifting flight's rate varies on the chosen axes only.
+    std::vector<int> held_axes;
+    for (int a = 0; a < 3; ++a) {
+      if (!options.gps_drift_axes[a]) held_axes.push_back(a);
+    }
+    for (int f : drifting_flights) {
+      double* rate = (*gps_drift)[f].data();
+      if (held_axes.size() == 3) {
+        problem.SetParameterBlockConstant(rate);
+      } else {
+        if (!held_axes.empty()) {
+          owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(3, held_axes));
+          problem.SetManifold(rate, owned_manifolds.back().get());
+        }
+        result.drift_estimated = true;
+      }
+    }
+  }
+  // The nadir attitude prior: every adjusted image's optical axis down.
+  if (options.nadir_prior_sigma_deg > 0.0) {
+    const double inv_sigma = 1.0 / (options.nadir_prior_sigma_deg * M_PI / 180.0);
+    for (size_t i = 0; i < num_images; ++i) {
+      if (!image_used[i] || !merged[i].empty()) continue;
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<NadirAttitudePrior, 2, 4>(new NadirAttitudePrior{inv_sigma}), nullptr,
+          rotations[i].data());
+      ++result.num_nadir;
     }
   }
   for (size_t c = 0; c < model->cameras.size() && c < options.focal_prior_px.size(); ++c) {
@@ -956,6 +1017,9 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
   if (problem.HasParameterBlock(gps_offset)) ordering->AddElementToGroup(gps_offset, 1);
+  for (Eigen::Vector3d& d : *gps_drift) {
+    if (problem.HasParameterBlock(d.data())) ordering->AddElementToGroup(d.data(), 1);
+  }
   if (result.num_points > 0) solver_options.linear_solver_ordering = ordering;
 
   std::unique_ptr<IterationForwarder> forwarder;
@@ -974,7 +1038,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
                               "precision would be relative to them)";
     } else {
       result.posterior = PosteriorPrecision(&problem, model, image_used, point_used, rotations, mark_blocks,
-                                            loss_for, mark_sigma, options, gps_offset);
+                                            loss_for, mark_sigma, options, gps_offset, gps_drift);
     }
   } else if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
@@ -1193,9 +1257,23 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
 
   const int max_rounds = options.outlier_threshold_px > 0.0 ? options.max_outlier_rounds : 0;
   Eigen::Vector3d gps_offset = options.initial_gps_offset_m;
+  std::vector<Eigen::Vector3d> gps_drift;
+  if (options.estimate_gps_drift) {
+    int flights = 0;
+    for (const Image& image : model->images) {
+      if (image.gps_prior) flights = std::max(flights, image.gps_prior->flight + 1);
+    }
+    gps_drift.assign(flights, Eigen::Vector3d::Zero());
+    for (int f = 0; f < flights && f < static_cast<int>(options.initial_gps_drift_m_per_s.size()); ++f) {
+      gps_drift[f] = options.initial_gps_drift_m_per_s[f];
+    }
+  }
   for (int round = 0;; ++round) {
-    RoundResult result = SolveOnce(model, options, round, gps_offset.data());
+    RoundResult result = SolveOnce(model, options, round, gps_offset.data(), &gps_drift);
     summary.gps_offset_estimated = result.offset_estimated;
+    summary.gps_drift_estimated = result.drift_estimated;
+    summary.gps_drift_m_per_s = gps_drift;
+    summary.num_nadir_priors = result.num_nadir;
     summary.redundancy = result.ceres.num_residuals_reduced - result.ceres.num_effective_parameters_reduced;
     summary.sigma0 = summary.redundancy > 0 ? std::sqrt(2.0 * result.ceres.final_cost / summary.redundancy) : 0.0;
     summary.intrinsics_precision = result.precision;
@@ -1250,7 +1328,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   }
 
   if (options.compute_precision) {
-    RoundResult pass = SolveOnce(model, options, summary.outlier_rounds + 1, gps_offset.data(),
+    RoundResult pass = SolveOnce(model, options, summary.outlier_rounds + 1, gps_offset.data(), &gps_drift,
                                  /*precision_pass=*/true);
     summary.precision = std::move(pass.posterior);
     BundlePrecision& p = summary.precision;
@@ -1262,6 +1340,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
       }
       for (PointPrecision& pt : p.points) pt.cov *= p.variance_factor;
       p.gps_offset_cov *= p.variance_factor;
+      for (Eigen::Matrix3d& c : p.gps_drift_cov) c *= p.variance_factor;
     }
   }
 

@@ -20,6 +20,7 @@
 // no loss and sigma 1 px this is the BAL literature's cost in px².
 
 #include <Eigen/Core>
+#include <array>
 #include <functional>
 #include <string>
 #include <vector>
@@ -112,6 +113,22 @@ struct BundleOptions {
   // at its initial value. initial_gps_offset_m is the start (ENU metres).
   bool estimate_gps_offset = false;
   Eigen::Vector3d initial_gps_offset_m = Eigen::Vector3d::Zero();
+  // A GNSS drift growing linearly in time within each flight (a consumer
+  // drone's barometric / GNSS altitude drift), estimated per flight f as a
+  // rate d_f (m/s, E N U) on the GPS priors whose PositionPrior::flight is f:
+  //   r = (C + o + d_f Δt − GPS) / σ,   Δt = PositionPrior::time_from_flight_s.
+  // Axes not in gps_drift_axes stay at their initial rate (zero). The rate is
+  // not separable from a tilt of the block unless control anchors the datum
+  // or the nadir attitude prior below holds the tilt.
+  bool estimate_gps_drift = false;
+  std::array<bool, 3> gps_drift_axes = {false, false, true};
+  std::vector<Eigen::Vector3d> initial_gps_drift_m_per_s;  // per flight (missing: zero)
+  // Attitude prior of a nadir block: each adjusted image's optical axis
+  // points down (−U) with this standard deviation per image (degrees); 0:
+  // none. The tie points fix the images' attitudes relative to each other,
+  // so together the priors hold only the block's common tilt, to about
+  // σ / √n: what GPS heights that drift cannot hold.
+  double nadir_prior_sigma_deg = 0.0;
   // The GNSS antenna's position in the camera frame (metres; x right, y
   // down the image, z along the optical axis): the receiver reads
   // C + Rᵀ l. Zero: the antenna at the camera centre.
@@ -231,6 +248,9 @@ struct BundlePrecision {
   std::vector<PointPrecision> points;  // adjusted points and check points
   bool has_gps_offset = false;
   Eigen::Matrix3d gps_offset_cov = Eigen::Matrix3d::Zero();
+  // Per flight of the GNSS drift model ((m/s)²); zero rows and columns for
+  // axes held.
+  std::vector<Eigen::Matrix3d> gps_drift_cov;
   std::vector<MarkTest> marks;  // control marks, and check marks inside the bundle
   double time_s = 0.0;
   const PointPrecision* ForPoint(int point) const;
@@ -268,6 +288,10 @@ struct BundleSummary {
   // initial value held fixed.
   bool gps_offset_estimated = false;
   Eigen::Vector3d gps_offset_m = Eigen::Vector3d::Zero();
+  // GNSS drift rates per flight (m/s, E N U), when estimated.
+  bool gps_drift_estimated = false;
+  std::vector<Eigen::Vector3d> gps_drift_m_per_s;
+  int num_nadir_priors = 0;
 
   std::string linear_solver;
   std::string gauge;            // what anchors the datum

@@ -52,6 +52,14 @@ std::vector<View> ViewsOf(const SparseModel& model, int point_index) {
   return views;
 }
 
+constexpr double kNadirPriorSigmaDeg = 5.0;  // per photo (GpsDriftReport)
+
+std::string FormatDegrees(double deg) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f deg", deg);
+  return text;
+}
+
 std::string FormatMetres(double m) {
   char text[32];
   std::snprintf(text, sizeof text, "%.3f m", m);
@@ -652,6 +660,54 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     return options.helmert_inlier_m > 0.0 ? options.helmert_inlier_m : std::max(0.5, 5.0 * max_sigma);
   };
 
+  // The block's viewing geometry in its own frame, and the GPS images'
+  // capture times and flights (the GNSS drift model, gnss_drift.h).
+  report.viewing = MeasureViewingGeometry(*model);
+  std::vector<double> gps_times;
+  for (int i : gps_images) gps_times.push_back(gps.at(model->images[i].name).time_s);
+  const int num_timed = static_cast<int>(std::count_if(gps_times.begin(), gps_times.end(),
+                                                       [](double t) { return std::isfinite(t); }));
+  const FlightTimes flights = SplitFlights(gps_times);
+  double median_sigma_h = 0.0, median_sigma_v = 0.0;
+  {
+    std::vector<double> h, v;
+    for (int i : gps_images) {
+      h.push_back(model->images[i].gps_prior->sigma_h_m);
+      v.push_back(model->images[i].gps_prior->sigma_v_m);
+    }
+    if (!h.empty()) {
+      std::nth_element(h.begin(), h.begin() + h.size() / 2, h.end());
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      median_sigma_h = h[h.size() / 2];
+      median_sigma_v = v[v.size() / 2];
+    }
+  }
+  GpsDriftReport& drift = report.gps_drift;
+  std::vector<Eigen::Vector3d> initial_drift_rates;
+  auto record_trend = [&](const DriftTrend& trend) {
+    drift.flights.clear();
+    initial_drift_rates.clear();
+    for (const DriftTrend::Flight& f : trend.flights) {
+      GpsDriftReport::Flight out;
+      out.images = f.images;
+      out.duration_s = f.duration_s;
+      out.trend_m_per_s = f.rate_m_per_s;
+      out.trend_sigma = f.rate_sigma;
+      drift.flights.push_back(out);
+      Eigen::Vector3d start = Eigen::Vector3d::Zero();
+      for (int a = 0; a < 3; ++a) start[a] = trend.significant_axes[a] ? f.rate_m_per_s[a] : 0.0;
+      initial_drift_rates.push_back(start);
+    }
+  };
+  // Each GPS prior learns its flight and time (only when the drift is estimated).
+  auto attach_flights = [&]() {
+    for (size_t k = 0; k < gps_images.size(); ++k) {
+      PositionPrior& p = *model->images[gps_images[k]].gps_prior;
+      p.flight = flights.flight[k];
+      p.time_from_flight_s = flights.dt_s[k];
+    }
+  };
+
   // With three or more non-collinear control points the datum is theirs.
   std::optional<SimilarityFit> fit;
   if (control_from.size() >= 3) {
@@ -792,6 +848,58 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
           " triangulated control points)");
     }
     report.datum_source = control_from.empty() ? "GPS" : "GPS and control points";
+    // GPS heights that drift in time would tilt a nadir block (strips are
+    // flown one after another): the block levelled by its mean optical axis
+    // shows the drift as a trend in time of the GPS height residuals. A
+    // trend, or a GPS fit that tilts the block by more than 10°, puts the
+    // nadir attitude prior in charge of the tilt, with the drift estimated.
+    const Eigen::Vector3d down(0.0, 0.0, -1.0);
+    const Eigen::Vector3d fit_axis = fit->transform.rotation * report.viewing.mean_axis;
+    drift.gps_fit_tilt_deg = std::atan2(fit_axis.cross(down).norm(), fit_axis.dot(down)) * 180.0 / M_PI;
+    if (!report.viewing.nadir) {
+      drift.note = "not tested: " + report.viewing.reason;
+    } else if (gps_images.size() < 6) {
+      drift.note = "not tested: fewer than 6 photos with GPS";
+    } else if (const auto levelled = FitLevelledSimilarity(from, to, report.viewing.mean_axis, threshold)) {
+      drift.tested = true;
+      std::vector<Eigen::Vector3d> residuals(gps_images.size());
+      FlightTimes inliers = flights;
+      for (size_t k = 0; k < gps_images.size(); ++k) {
+        residuals[k] = gps_to[k] - levelled->transform.Apply(gps_from[k]);
+        if (!levelled->inliers[k]) inliers.flight[k] = -1;
+      }
+      const DriftTrend trend = FitDriftTrend(residuals, inliers, median_sigma_h, median_sigma_v);
+      record_trend(trend);
+      const bool drifting = num_timed >= 6 && trend.Significant();
+      const bool tilted = drift.gps_fit_tilt_deg > 10.0;
+      char text[240];
+      if (drifting || tilted) {
+        fit = levelled;
+        drift.nadir_prior = true;
+        drift.nadir_prior_sigma_deg = kNadirPriorSigmaDeg;
+        drift.estimated = drifting;
+        if (drifting) {
+          drift.axes = trend.significant_axes;
+          attach_flights();
+        }
+        std::snprintf(text, sizeof text,
+                      "the GPS alone would tilt this nadir block by %.1f deg; levelled by its mean optical axis "
+                      "(attitude prior %.0f deg per photo)%s",
+                      drift.gps_fit_tilt_deg, kNadirPriorSigmaDeg,
+                      drifting ? ", the GPS drift estimated per flight" : "");
+      } else if (num_timed < 6) {
+        std::snprintf(text, sizeof text,
+                      "no capture times: drift in time not tested; the GPS fit tilts the block %.1f deg",
+                      drift.gps_fit_tilt_deg);
+      } else {
+        std::snprintf(text, sizeof text,
+                      "no significant trend in time of the GPS residuals; the GPS fit tilts the block %.1f deg",
+                      drift.gps_fit_tilt_deg);
+      }
+      drift.note = text;
+    } else {
+      drift.note = "not tested: the levelled fit failed";
+    }
     if (fit->num_inliers < static_cast<int>(from.size())) {
       std::vector<std::string> names;
       for (size_t k = 0; k < from.size(); ++k) {
@@ -854,6 +962,26 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     std::vector<Eigen::Vector3d> d(gps_images.size());
     for (size_t k = 0; k < gps_images.size(); ++k) {
       d[k] = gps_to[k] - AntennaOf(model->images[gps_images[k]], bundle.gnss_lever_arm_m);
+    }
+    // A GNSS drift in time shows here directly (the control holds the
+    // datum): estimated per flight, and the GPS judged after it.
+    if (num_timed >= 6) {
+      drift.tested = true;
+      const DriftTrend trend = FitDriftTrend(d, flights, median_sigma_h, median_sigma_v);
+      record_trend(trend);
+      if (trend.Significant()) {
+        drift.estimated = true;
+        drift.axes = trend.significant_axes;
+        attach_flights();
+        for (size_t k = 0; k < gps_images.size(); ++k) {
+          if (flights.flight[k] >= 0) d[k] -= initial_drift_rates[flights.flight[k]] * flights.dt_s[k];
+        }
+        drift.note = "GPS minus the control-only adjustment trends in time: drift estimated per flight";
+      } else {
+        drift.note = "no significant trend in time of GPS minus the control-only adjustment";
+      }
+    } else {
+      drift.note = "not tested: capture times on fewer than 6 photos with GPS";
     }
     Eigen::Vector3d median;
     for (int c = 0; c < 3; ++c) {
@@ -933,6 +1061,13 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
         "or more images each to hold the datum"));
   }
 
+  if (drift.estimated) {
+    bundle.estimate_gps_drift = true;
+    bundle.gps_drift_axes = drift.axes;
+    bundle.initial_gps_drift_m_per_s = initial_drift_rates;
+  }
+  if (drift.nadir_prior) bundle.nadir_prior_sigma_deg = drift.nadir_prior_sigma_deg;
+
   // 4. Bundle adjustment with priors.
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
   bundle.compute_intrinsics_covariance = true;
@@ -996,6 +1131,80 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
   for (auto& [index, prior] : rejected_gps) model->images[index].gps_prior = prior;
+  // What the receiver should have read for an image, as adjusted: its
+  // antenna, plus the GPS offset and the flight's drift where estimated.
+  auto gps_as_adjusted = [&](const Image& image) {
+    Eigen::Vector3d at = AntennaOf(image, options.bundle.gnss_lever_arm_m) + report.bundle.gps_offset_m;
+    const PositionPrior& p = *image.gps_prior;
+    if (report.bundle.gps_drift_estimated && p.flight >= 0 &&
+        p.flight < static_cast<int>(report.bundle.gps_drift_m_per_s.size())) {
+      at += report.bundle.gps_drift_m_per_s[p.flight] * p.time_from_flight_s;
+    }
+    return at;
+  };
+
+  // The drift as estimated, and the cameras' attitude against the flight type.
+  if (drift.estimated) {
+    const BundlePrecision& precision = report.bundle.precision;
+    // The rates rest on the GPS alone: their sigma is scaled by the GPS
+    // priors' own variance factor (their standardised residuals after the
+    // drift), not by the adjustment's, which the tie points dominate.
+    double gps_sum2 = 0.0;
+    int gps_rows = 0;
+    for (const Image& image : model->images) {
+      if (!image.registered || !image.gps_prior) continue;
+      if (rejected_gps.count(static_cast<int>(&image - model->images.data()))) continue;
+      const Eigen::Vector3d r = gps_as_adjusted(image) - image.gps_prior->position;
+      const Eigen::Vector3d sigma(image.gps_prior->sigma_h_m, image.gps_prior->sigma_h_m, image.gps_prior->sigma_v_m);
+      gps_sum2 += r.cwiseQuotient(sigma).squaredNorm();
+      gps_rows += 3;
+    }
+    int drift_params = 0;
+    for (int a = 0; a < 3; ++a) drift_params += drift.axes[a] ? static_cast<int>(drift.flights.size()) : 0;
+    const double gps_variance_factor =
+        gps_rows > drift_params + 3 ? gps_sum2 / (gps_rows - drift_params - 3) : 1.0;
+    std::string text;
+    for (size_t f = 0; f < drift.flights.size() && f < report.bundle.gps_drift_m_per_s.size(); ++f) {
+      GpsDriftReport::Flight& flight = drift.flights[f];
+      flight.rate_m_per_s = report.bundle.gps_drift_m_per_s[f];
+      if (precision.computed && f < precision.gps_drift_cov.size() && precision.variance_factor > 0.0) {
+        flight.rate_sigma = (precision.gps_drift_cov[f].diagonal() / precision.variance_factor * gps_variance_factor)
+                                .cwiseMax(0.0)
+                                .cwiseSqrt();
+      }
+      const char* axis_names[3] = {"E", "N", "U"};
+      for (int a = 0; a < 3; ++a) {
+        if (!drift.axes[a]) continue;
+        char part[200];
+        std::snprintf(part, sizeof part, "%sflight %zu %s %+.3f m/s ± %.3f (%+.1f m over %.0f s)",
+                      text.empty() ? "" : "; ", f + 1, axis_names[a], flight.rate_m_per_s[a], flight.rate_sigma[a],
+                      flight.rate_m_per_s[a] * flight.duration_s, flight.duration_s);
+        text += part;
+      }
+    }
+    report.findings.push_back(Finding::Warning(
+        "GPS_DRIFT",
+        "the GPS positions drift in time (" + text + "): estimated in the adjustment as a GNSS drift per flight" +
+            (drift.nadir_prior ? std::string("; the block's tilt held by the photos' nadir attitude (the GPS "
+                                             "alone would tilt it ") +
+                                     FormatDegrees(drift.gps_fit_tilt_deg) + "); without control the heights carry "
+                                     "the GPS's mean error"
+                               : std::string("; the control holds the datum"))));
+  } else if (drift.nadir_prior) {
+    report.findings.push_back(Finding::Warning(
+        "GPS_TILT_REJECTED",
+        "the GPS heights would tilt this nadir block by " + FormatDegrees(drift.gps_fit_tilt_deg) +
+            " without any trend in time; the block is levelled by the photos' nadir attitude instead: check the "
+            "GPS altitudes"));
+  }
+  report.tilt = MeasureTilt(*model);
+  if (report.viewing.nadir && report.tilt.mean_axis_tilt_deg > 10.0) {
+    report.findings.push_back(Finding::Error(
+        "CAMERA_ATTITUDE_IMPLAUSIBLE",
+        "the adjusted block of nadir photos looks " + FormatDegrees(report.tilt.mean_axis_tilt_deg) +
+            " off vertical (mean optical axis; median photo " + FormatDegrees(report.tilt.median_deg) +
+            "): the datum is tilted. GPS heights drifting or wrong, or control in a wrong CRS?"));
+  }
 
   // 5. Check points from the adjusted cameras alone; residuals in the output CRS.
   ReportProgress(options.progress, 0.9, "check points");
@@ -1057,8 +1266,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
           continue;
         }
         xy.push_back(image.pose.centre_in_world.head<2>());
-        dz.push_back((AntennaOf(image, options.bundle.gnss_lever_arm_m) + report.bundle.gps_offset_m -
-                      image.gps_prior->position).z());
+        dz.push_back((gps_as_adjusted(image) - image.gps_prior->position).z());
       }
     }
     report.dome = FitDome(xy, dz, centre, radius, source);
@@ -1098,8 +1306,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     if (image.gps_prior) {
       c.has_prior = true;
       c.prior_rejected = rejected_gps.count(static_cast<int>(&image - model->images.data())) > 0;
-      c.d_enu_m = AntennaOf(image, options.bundle.gnss_lever_arm_m) + report.bundle.gps_offset_m -
-                  image.gps_prior->position;
+      c.d_enu_m = gps_as_adjusted(image) - image.gps_prior->position;
       c.sigma_h_m = image.gps_prior->sigma_h_m;
       c.sigma_v_m = image.gps_prior->sigma_v_m;
     }

@@ -25,6 +25,7 @@
 //     from their image observations alone and compared with their surveyed
 //     coordinates in the output CRS.
 
+#include <array>
 #include <map>
 #include <optional>
 #include <string>
@@ -38,6 +39,7 @@
 #include "libphoto/adjust/block_geometry.h"
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/adjust/findings.h"
+#include "libphoto/adjust/gnss_drift.h"
 #include "libphoto/base/progress.h"
 #include "georef/gps_fix.h"
 #include "libphoto/geometry/triangulation.h"
@@ -125,7 +127,7 @@ struct CameraResult {
   // The GPS position disagreed with the control datum beyond the threshold
   // (after the offset): left out of the adjustment, still reported.
   bool prior_rejected = false;
-  // adjusted + GPS offset − GPS (E, N, U): the prior's residual
+  // adjusted + GPS offset (+ drift) − GPS (E, N, U): the prior's residual
   Eigen::Vector3d d_enu_m = Eigen::Vector3d::Zero();
   double sigma_h_m = 0.0;
   double sigma_v_m = 0.0;
@@ -152,6 +154,28 @@ struct GpsVersusControl {
   Eigen::Vector3d rms_after_offset_m = Eigen::Vector3d::Zero();
   bool significant = false;
   std::vector<std::string> rejected;  // images whose GPS left the adjustment
+};
+
+// The GNSS drift analysis (gnss_drift.h): whether the GPS errors trend in
+// time, what the adjustment estimated, and whether the nadir attitude prior
+// held the block's tilt.
+struct GpsDriftReport {
+  bool tested = false;
+  std::string note;               // what was tested, or why not
+  double gps_fit_tilt_deg = 0.0;  // the block's tilt had the GPS alone placed it (full similarity)
+  bool estimated = false;         // the drift model entered the adjustment
+  std::array<bool, 3> axes = {false, false, false};  // E, N, U estimated
+  bool nadir_prior = false;       // the attitude prior held the tilt
+  double nadir_prior_sigma_deg = 0.0;
+  struct Flight {
+    int images = 0;
+    double duration_s = 0.0;
+    Eigen::Vector3d trend_m_per_s = Eigen::Vector3d::Zero();  // in the initial residuals
+    Eigen::Vector3d trend_sigma = Eigen::Vector3d::Zero();
+    Eigen::Vector3d rate_m_per_s = Eigen::Vector3d::Zero();   // estimated in the adjustment
+    Eigen::Vector3d rate_sigma = Eigen::Vector3d::Zero();     // posterior; 0 where held or not computed
+  };
+  std::vector<Flight> flights;
 };
 
 // Leave-one-out over the control points: each one's residual when it is
@@ -185,6 +209,11 @@ struct GeoreferenceReport {
   int helmert_inliers = 0;
   double helmert_rms_m = 0.0;
   GpsVersusControl gps_vs_control;
+  // The block's viewing geometry in its own frame (before the similarity),
+  // and its cameras' tilt from nadir after the adjustment.
+  ViewingGeometry viewing;
+  TiltStats tilt;
+  GpsDriftReport gps_drift;
   // The control's scatter about the model: the initial similarity over every
   // control point consistent with the others, per axis, against the file's
   // sigmas (their RMS over the three axes). Control several times noisier

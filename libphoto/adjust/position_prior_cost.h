@@ -114,6 +114,78 @@ inline ceres::CostFunction* MakeLeverArmPriorCost(const Eigen::Vector3d& prior, 
       new LeverArmPositionPrior<false>{prior, lever, inv});
 }
 
+// GPS prior under the GNSS drift model: the receiver reads
+// C (+ Rᵀ l) + o + d Δt, with o the shared offset, d the flight's drift rate
+// (m/s) and Δt the capture time from the flight's mean:
+//   r = ((C + o + d Δt − P) / σh, …, / σv).
+// Analytic without a lever arm: Jacobians diag(1/σ) for C and o, Δt diag(1/σ)
+// for d.
+class DriftPositionPriorCost final : public ceres::SizedCostFunction<3, 3, 3, 3> {
+ public:
+  DriftPositionPriorCost(const Eigen::Vector3d& prior, double sigma_h_m, double sigma_v_m, double dt_s)
+      : prior_(prior), inv_sigma_(1.0 / sigma_h_m, 1.0 / sigma_h_m, 1.0 / sigma_v_m), dt_(dt_s) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    for (int i = 0; i < 3; ++i) {
+      residuals[i] = (parameters[0][i] + parameters[1][i] + dt_ * parameters[2][i] - prior_[i]) * inv_sigma_[i];
+    }
+    if (jacobians != nullptr) {
+      for (int b = 0; b < 3; ++b) {
+        if (jacobians[b] == nullptr) continue;
+        Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> j(jacobians[b]);
+        j = (b == 2 ? dt_ : 1.0) * inv_sigma_.asDiagonal().toDenseMatrix();
+      }
+    }
+    return true;
+  }
+
+ private:
+  Eigen::Vector3d prior_;
+  Eigen::Vector3d inv_sigma_;
+  double dt_;
+};
+
+// The same through a lever arm (blocks: quaternion, C, o, d).
+struct DriftLeverArmPositionPrior {
+  Eigen::Vector3d prior, lever, inv_sigma;
+  double dt;
+  template <typename T>
+  bool operator()(const T* q, const T* c, const T* o, const T* d, T* r) const {
+    const T conj[4] = {q[0], -q[1], -q[2], -q[3]};
+    const T l[3] = {T(lever.x()), T(lever.y()), T(lever.z())};
+    T arm[3];
+    ceres::UnitQuaternionRotatePoint(conj, l, arm);
+    for (int i = 0; i < 3; ++i) {
+      r[i] = (c[i] + arm[i] + o[i] + T(dt) * d[i] - T(prior[i])) * T(inv_sigma[i]);
+    }
+    return true;
+  }
+};
+
+inline ceres::CostFunction* MakeDriftLeverArmPriorCost(const Eigen::Vector3d& prior, double sigma_h_m,
+                                                       double sigma_v_m, const Eigen::Vector3d& lever, double dt_s) {
+  return new ceres::AutoDiffCostFunction<DriftLeverArmPositionPrior, 3, 4, 3, 3, 3>(new DriftLeverArmPositionPrior{
+      prior, lever, Eigen::Vector3d(1.0 / sigma_h_m, 1.0 / sigma_h_m, 1.0 / sigma_v_m), dt_s});
+}
+
+// Nadir attitude prior on a rotation block (cam_from_world, w x y z): the
+// optical axis a = Rᵀ (0, 0, 1) in the world (ENU) points down, so its
+// horizontal part is zero: r = (a_E, a_N) / σ (σ in radians; |r| σ is the
+// sine of the tilt).
+struct NadirAttitudePrior {
+  double inv_sigma;
+  template <typename T>
+  bool operator()(const T* q, T* r) const {
+    const T conj[4] = {q[0], -q[1], -q[2], -q[3]};
+    const T z[3] = {T(0.0), T(0.0), T(1.0)};
+    T axis[3];
+    ceres::UnitQuaternionRotatePoint(conj, z, axis);
+    r[0] = axis[0] * T(inv_sigma);
+    r[1] = axis[1] * T(inv_sigma);
+    return true;
+  }
+};
+
 // Prior on one parameter of a block of size n (a camera's focal length):
 // r = (x[index] - prior) / sigma.
 class ParameterPriorCost final : public ceres::CostFunction {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <regex>
@@ -72,6 +73,35 @@ std::string Text(const char* v) { return v ? std::string(v) : std::string(); }
 
 }  // namespace
 
+std::optional<double> ExifDateTimeSeconds(const std::string& datetime, const std::string& subsec) {
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0, se = 0;
+  char tail = 0;
+  // Separators as the standard writes them (':' in the date); some writers use '-'.
+  if (std::sscanf(datetime.c_str(), "%4d%*1[:-]%2d%*1[:-]%2d %2d:%2d:%2d%c", &y, &mo, &d, &h, &mi, &se, &tail) < 6) {
+    return std::nullopt;
+  }
+  if (y < 1900 || mo < 1 || mo > 12 || d < 1 || d > 31 || h > 23 || mi > 59 || se > 60 || h < 0 || mi < 0 ||
+      se < 0) {
+    return std::nullopt;
+  }
+  // Days from 1970-01-01 of the proleptic Gregorian calendar (era arithmetic).
+  const int yy = y - (mo <= 2 ? 1 : 0);
+  const int era = yy / 400;
+  const int yoe = yy - era * 400;
+  const int doy = (153 * (mo + (mo > 2 ? -3 : 9)) + 2) / 5 + d - 1;
+  const int doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+  const double days = era * 146097.0 + doe - 719468.0;
+  double seconds = days * 86400.0 + h * 3600.0 + mi * 60.0 + se;
+  // SubSecTimeOriginal: the digits are a decimal fraction ("5" = 0.5 s).
+  std::string digits;
+  for (char c : subsec) {
+    if (!std::isdigit(static_cast<unsigned char>(c))) break;
+    digits += c;
+  }
+  if (!digits.empty() && digits.size() <= 9) seconds += std::stod("0." + digits);
+  return seconds;
+}
+
 bool IsImageFileName(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
@@ -101,6 +131,7 @@ ImageMetadata ReadImageMetadata(const std::filesystem::path& path) {
   m.make = Text(item("EXIF_Make"));
   m.model = Text(item("EXIF_Model"));
   m.datetime_original = Text(item("EXIF_DateTimeOriginal"));
+  m.capture_time_s = ExifDateTimeSeconds(m.datetime_original, Text(item("EXIF_SubSecTimeOriginal")));
   m.lat_deg = Dms(item("EXIF_GPSLatitude"), item("EXIF_GPSLatitudeRef"), 'S');
   m.lon_deg = Dms(item("EXIF_GPSLongitude"), item("EXIF_GPSLongitudeRef"), 'W');
   if (m.lat_deg && std::abs(*m.lat_deg) > 90.0) m.lat_deg.reset();

@@ -20,6 +20,10 @@ struct ImageMetadata {
   std::string make;
   std::string model;
   std::string datetime_original;
+  // DateTimeOriginal (with SubSecTimeOriginal) in seconds since 1970-01-01
+  // of the camera's clock, whose time zone EXIF does not say: for time
+  // differences within a survey.
+  std::optional<double> capture_time_s;
 
   // GPS (WGS84 latitude / longitude; altitude as written, its reference is
   // the caller's choice: EXIF says "above sea level", vendors differ).
@@ -51,6 +55,10 @@ struct ImageMetadata {
 // Throws IoError naming the path when GDAL cannot open the file as an image
 // (missing, corrupt, not an image).
 ImageMetadata ReadImageMetadata(const std::filesystem::path& path);
+
+// "YYYY:MM:DD HH:MM:SS" (EXIF) and optional sub-second digits as seconds
+// since 1970-01-01 on the same clock; nullopt when malformed or blank.
+std::optional<double> ExifDateTimeSeconds(const std::string& datetime, const std::string& subsec = "");
 
 // True for names aerotri treats as photos (.jpg, .jpeg, .tif, .tiff, any case).
 bool IsImageFileName(const std::filesystem::path& path);

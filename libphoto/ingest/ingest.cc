@@ -39,13 +39,18 @@ namespace {
 // The GPS fix of one photo: the CSV's row, else EXIF (RTK sigmas when tagged).
 std::optional<GpsFix> FixOf(const std::string& name, const ImageMetadata& m,
                             const std::map<std::string, GpsFix>& csv, const IngestOptions& o) {
-  if (const auto it = csv.find(name); it != csv.end()) return it->second;
+  if (const auto it = csv.find(name); it != csv.end()) {
+    GpsFix f = it->second;
+    if (!std::isfinite(f.time_s) && m.capture_time_s) f.time_s = *m.capture_time_s;
+    return f;
+  }
   if (!m.HasGps() || !m.gps_altitude_m || (*m.lat_deg == 0.0 && *m.lon_deg == 0.0)) return std::nullopt;
   GpsFix f;
   f.position = {*m.lat_deg, *m.lon_deg, EllipsoidalHeight(*m.lat_deg, *m.lon_deg, *m.gps_altitude_m, o.gps_altitude)};
   f.sigma_h_m = o.gps_sigma_h_m;
   f.sigma_v_m = o.gps_sigma_v_m;
   f.source = "exif";
+  if (m.capture_time_s) f.time_s = *m.capture_time_s;
   if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_hgt_m > 0) {
     f.sigma_h_m = std::max(0.005, std::hypot(*m.rtk_std_lat_m, *m.rtk_std_lon_m) / std::sqrt(2.0));
     f.sigma_v_m = std::max(0.005, *m.rtk_std_hgt_m);
@@ -190,6 +195,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
     im.relative_altitude_m = m.relative_altitude_m;
     im.gimbal_pitch_deg = m.gimbal_pitch_deg;
     im.gimbal_yaw_deg = m.gimbal_yaw_deg;
+    im.capture_time_s = m.capture_time_s;
     im.gps = FixOf(im.name, m, csv, o);
     if (im.gps) {
       ++r.images_with_gps;
@@ -253,10 +259,12 @@ json ToJson(const IngestRecord& r) {
     if (i.relative_altitude_m) im["relative_altitude_m"] = *i.relative_altitude_m;
     if (i.gimbal_pitch_deg) im["gimbal_pitch_deg"] = *i.gimbal_pitch_deg;
     if (i.gimbal_yaw_deg) im["gimbal_yaw_deg"] = *i.gimbal_yaw_deg;
+    if (i.capture_time_s) im["capture_time_s"] = *i.capture_time_s;
     if (i.gps) {
       im["gps"] = {{"lat_deg", i.gps->position.lat_deg}, {"lon_deg", i.gps->position.lon_deg},
                    {"h_m", i.gps->position.h_m},         {"sigma_h_m", i.gps->sigma_h_m},
                    {"sigma_v_m", i.gps->sigma_v_m},       {"source", i.gps->source}};
+      if (std::isfinite(i.gps->time_s)) im["gps"]["time_s"] = i.gps->time_s;
     } else {
       im["gps"] = nullptr;
     }
@@ -341,6 +349,7 @@ IngestRecord IngestRecordFromJson(const json& doc, const std::string& path) {
       im.relative_altitude_m = opt("relative_altitude_m");
       im.gimbal_pitch_deg = opt("gimbal_pitch_deg");
       im.gimbal_yaw_deg = opt("gimbal_yaw_deg");
+      im.capture_time_s = opt("capture_time_s");
       if (j.contains("gps") && !j.at("gps").is_null()) {
         const json& g = j.at("gps");
         GpsFix f;
@@ -348,6 +357,7 @@ IngestRecord IngestRecordFromJson(const json& doc, const std::string& path) {
         f.sigma_h_m = g.at("sigma_h_m");
         f.sigma_v_m = g.at("sigma_v_m");
         f.source = g.at("source");
+        if (g.contains("time_s") && g.at("time_s").is_number()) f.time_s = g.at("time_s");
         im.gps = f;
       }
       im.group = j.value("group", -1);

@@ -48,6 +48,7 @@ struct IngestedImage {
   double scale = 1.0;                         // full px per working px
   std::string make, model;
   std::optional<double> focal_mm, relative_altitude_m, gimbal_pitch_deg, gimbal_yaw_deg;
+  std::optional<double> capture_time_s;  // EXIF DateTimeOriginal (ExifDateTimeSeconds)
   std::optional<GpsFix> gps;
   int group = -1;
 };

@@ -56,6 +56,11 @@ struct PositionPrior {
   // sigmas on other axes (a projected CRS's x / y / z); sigma_h_m and
   // sigma_v_m then summarise it (largest horizontal, vertical).
   std::optional<Eigen::Matrix3d> covariance;
+  // GPS priors under a drift model (BundleOptions::estimate_gps_drift): the
+  // flight the photo belongs to (-1: no drift applies) and its capture time
+  // minus the flight's mean time (s).
+  int flight = -1;
+  double time_from_flight_s = 0.0;
 };
 
 enum class PointRole {

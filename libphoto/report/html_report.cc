@@ -630,6 +630,45 @@ std::string CameraCalibration(const json& r) {
   return h.str();
 }
 
+// The cameras' attitude against the flight type, and the GNSS drift model.
+std::string AttitudeAndDrift(const json& r) {
+  const json& att = r.value("adjustment", json::object()).value("attitude", json::object());
+  const json& d = r.value("gps_drift", json::object());
+  if (att.empty() && d.empty()) return "";
+  std::ostringstream h;
+  h << "<h2>Attitude and GNSS drift</h2><p>Viewing geometry: " << Escape(Text(att, "viewing", "–"))
+    << ". Adjusted tilt from nadir: mean optical axis " << Num(Get(att, "mean_axis_tilt_deg"), 1) << "&deg;, median photo "
+    << Num(Get(att, "median_tilt_deg"), 1) << "&deg;, largest " << Num(Get(att, "max_tilt_deg"), 1) << "&deg;.</p>";
+  h << "<p>GNSS drift: " << Escape(Text(d, "note", "–")) << ".";
+  if (d.value("nadir_prior", false)) {
+    h << " Tilt held by a nadir attitude prior of " << Num(Get(d, "nadir_prior_sigma_deg_per_photo"), 0)
+      << "&deg; per photo.";
+  }
+  h << "</p>";
+  const json& flights = d.value("flights", json::array());
+  if (d.value("estimated", false) && !flights.empty()) {
+    h << "<table><tr><th>flight</th><th>photos</th><th>duration (s)</th><th>axis</th><th>trend found (m/s)</th>"
+         "<th>estimated (m/s)</th><th>&sigma; (m/s)</th><th>over the flight (m)</th></tr>";
+    const json& axes = d.value("axes", json::object());
+    int k = 0;
+    for (const auto& f : flights) {
+      ++k;
+      for (const char* a : {"e", "n", "u"}) {
+        if (!axes.value(a, false)) continue;
+        const std::string key = std::string(a) + "_m";
+        const double rate = Get(f.value("rate_m_per_s", json::object()), key.c_str());
+        h << "<tr><td>" << k << "</td><td>" << f.value("images", 0) << "</td><td>" << Num(Get(f, "duration_s"), 0)
+          << "</td><td>" << (a[0] == 'e' ? "E" : a[0] == 'n' ? "N" : "U") << "</td><td>"
+          << Num(Get(f.value("trend_m_per_s", json::object()), key.c_str()), 4) << "</td><td>" << Num(rate, 4)
+          << "</td><td>" << Num(Get(f.value("rate_sigma_m_per_s", json::object()), key.c_str()), 4) << "</td><td>"
+          << Num(rate * Get(f, "duration_s"), 1) << "</td></tr>";
+      }
+    }
+    h << "</table>";
+  }
+  return h.str();
+}
+
 // Tie points by the number of images measuring them.
 std::string TrackTable(const json& r) {
   const json& t = r.value("adjustment", json::object()).value("tracks", json::object());
@@ -812,7 +851,7 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
       << "</td></tr></table>";
   }
   h << AdjustmentStatistics(r);
-  h << CameraCalibration(r) << TrackTable(r);
+  h << AttitudeAndDrift(r) << CameraCalibration(r) << TrackTable(r);
   h << "<h2>Survey map and residual vectors</h2>" << SurveyMap(r);
 
   std::vector<std::string> names;

@@ -336,6 +336,33 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   } else {
     j["gps_vs_control"] = nullptr;
   }
+  {
+    const GpsDriftReport& d = r.gps_drift;
+    nlohmann::json flights = nlohmann::json::array();
+    for (const GpsDriftReport::Flight& f : d.flights) {
+      flights.push_back({{"images", f.images},
+                         {"duration_s", f.duration_s},
+                         {"trend_m_per_s", enu(f.trend_m_per_s)},
+                         {"trend_sigma_m_per_s", enu(f.trend_sigma)},
+                         {"rate_m_per_s", enu(f.rate_m_per_s)},
+                         {"rate_sigma_m_per_s", enu(f.rate_sigma)}});
+    }
+    j["gps_drift"] = {{"note", d.note},
+                      {"tested", d.tested},
+                      {"estimated", d.estimated},
+                      {"axes", {{"e", d.axes[0]}, {"n", d.axes[1]}, {"u", d.axes[2]}}},
+                      {"gps_fit_tilt_deg", d.gps_fit_tilt_deg},
+                      {"nadir_prior", d.nadir_prior},
+                      {"nadir_prior_sigma_deg_per_photo", d.nadir_prior_sigma_deg},
+                      {"flights", flights}};
+    const ViewingGeometry& v = r.viewing;
+    j["adjustment"]["attitude"] = {{"nadir_block", v.nadir},
+                                   {"viewing", v.reason},
+                                   {"axes_spread_deg", v.spread_deg},
+                                   {"mean_axis_tilt_deg", r.tilt.mean_axis_tilt_deg},
+                                   {"median_tilt_deg", r.tilt.median_deg},
+                                   {"max_tilt_deg", r.tilt.max_deg}};
+  }
   const BlockGeometry& g = r.geometry;
   j["adjustment"]["block_geometry"] = {{"images", g.images},
                                        {"median_depth_m", g.median_depth_m},

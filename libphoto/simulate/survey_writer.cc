@@ -4,6 +4,7 @@
 #include <gdal_priv.h>
 
 #include <cmath>
+#include <ctime>
 #include <iomanip>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -241,6 +242,13 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
   info["gps_sigma_h_m"] = options.georef.gps_sigma_h_m;
   info["gps_sigma_v_m"] = options.georef.gps_sigma_v_m;
   info["gcp_noise_m"] = options.georef.gcp_noise_m;
+  info["seconds_per_photo"] = options.georef.seconds_per_photo;
+  const Eigen::Vector3d& drift = options.georef.gps_drift_m;
+  info["gps_drift_m"] = {drift.x(), drift.y(), drift.z()};
+  if (truth.images.size() > 1) {
+    const double duration = options.georef.seconds_per_photo * static_cast<double>(truth.images.size() - 1);
+    info["gps_drift_m_per_s"] = {drift.x() / duration, drift.y() / duration, drift.z() / duration};
+  }
   info["click_noise_px"] = options.click_noise_px;
   info["tie_point_noise_px"] = options.survey.pixel_noise_px;
   info["relief_m"] = options.survey.relief_m;
@@ -285,6 +293,16 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
     exif["EXIF_GPSAltitude"] = "(" + std::to_string(std::abs(alt)) + ")";
     exif["EXIF_GPSAltitudeRef"] = alt >= 0 ? "0x00" : "0x01";
     exif["EXIF_FocalLength"] = "(" + std::to_string(focal_mm) + ")";
+    if (std::isfinite(fix.time_s)) {
+      const auto t = static_cast<std::time_t>(std::floor(fix.time_s));
+      std::tm utc{};
+      gmtime_r(&t, &utc);
+      char stamp[32];
+      std::strftime(stamp, sizeof stamp, "%Y:%m:%d %H:%M:%S", &utc);
+      exif["EXIF_DateTimeOriginal"] = stamp;
+      exif["EXIF_SubSecTimeOriginal"] =
+          std::to_string(static_cast<int>(std::lround(100.0 * (fix.time_s - std::floor(fix.time_s)))) % 100);
+    }
     exif["EXIF_FocalPlaneXResolution"] = "(" + std::to_string(camera.width / (options.sensor_width_mm / 10.0)) + ")";
     exif["EXIF_FocalPlaneYResolution"] = exif["EXIF_FocalPlaneXResolution"];
     exif["EXIF_FocalPlaneResolutionUnit"] = "3";  // centimetres

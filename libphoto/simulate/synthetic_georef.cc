@@ -16,12 +16,16 @@ SyntheticGeoref MakeSyntheticGeoref(const SyntheticSurveyOptions& survey_options
   std::mt19937 rng(options.seed);
   std::normal_distribution<double> g(0.0, 1.0);
 
-  for (const Image& image : out.survey.truth.images) {
+  const size_t num_images = out.survey.truth.images.size();
+  for (size_t i = 0; i < num_images; ++i) {
+    const Image& image = out.survey.truth.images[i];
+    const double along = num_images > 1 ? static_cast<double>(i) / static_cast<double>(num_images - 1) : 0.0;
     const Eigen::Vector3d noisy =
-        image.pose.centre_in_world + Eigen::Vector3d(options.gps_sigma_h_m * g(rng),
-                                                     options.gps_sigma_h_m * g(rng),
-                                                     options.gps_sigma_v_m * g(rng));
+        image.pose.centre_in_world + along * options.gps_drift_m +
+        Eigen::Vector3d(options.gps_sigma_h_m * g(rng), options.gps_sigma_h_m * g(rng),
+                        options.gps_sigma_v_m * g(rng));
     GpsFix fix;
+    fix.time_s = options.start_time_s + options.seconds_per_photo * static_cast<double>(i);
     fix.position = frame.GeodeticFromEnu(noisy);
     fix.sigma_h_m = options.gps_sigma_h_m;
     fix.sigma_v_m = options.gps_sigma_v_m;

@@ -20,6 +20,14 @@ struct SyntheticGeorefOptions {
   double gps_sigma_h_m = 2.0;         // noise added to, and sigma of, GPS
   double gps_sigma_v_m = 4.0;
   double gcp_noise_m = 0.01;          // survey noise of control / check points
+  // Capture times: one photo every seconds_per_photo in flight order, from
+  // start_time_s (2026-06-01 10:00:00 on the camera's clock).
+  double seconds_per_photo = 2.0;
+  double start_time_s = 1780308000.0;
+  // A GNSS / barometric drift of the GPS positions, growing linearly in time
+  // from zero at the first photo to gps_drift_m (E, N, U) at the last (a
+  // consumer drone's altitude climbing by tens of metres over a flight).
+  Eigen::Vector3d gps_drift_m = Eigen::Vector3d::Zero();
   std::uint32_t seed = 1;
 };
 

@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#pragma once
+
+// What keeps a drifting GPS from tilting a block: the nadir attitude of a
+// survey flight, and a linear-in-time model of the GNSS error.
+//
+// A consumer drone's EXIF altitude often climbs or sinks by tens of metres
+// over a flight (barometric or GNSS drift) while the drone flies level. A
+// similarity fitted to those positions turns the drift into a tilt: strips
+// are flown one after the other, so height error linear in time is height
+// error linear across the block. Two facts break the tie:
+//  * a nadir survey's photos look down: their mean optical axis, which the
+//    tie points fix relative to the block, is the block's vertical
+//    (ViewingGeometry, FitLevelledSimilarity; in the adjustment an attitude
+//    prior per image, BundleOptions::nadir_prior_sigma_deg);
+//  * the GPS error then shows as a trend in capture time (FitDriftTrend),
+//    estimated in the adjustment per flight (BundleOptions::
+//    estimate_gps_drift) instead of bending the block.
+//
+// Frames: model frames are any right-handed frame of the reconstruction;
+// the datum frame is the adjustment's ENU (metres, z up). Times in seconds.
+
+#include <Eigen/Core>
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "georef/similarity.h"
+#include "libphoto/model/sparse_model.h"
+
+namespace aerotri {
+
+// Photos grouped into flights by capture time: a gap longer than
+// max(120 s, 20 times the median interval) starts a new flight (a battery
+// change). Index-aligned with the input; a NaN time gets flight -1.
+struct FlightTimes {
+  std::vector<int> flight;
+  std::vector<double> dt_s;         // time minus its flight's mean time
+  std::vector<double> duration_s;   // per flight
+  std::vector<int> images;          // per flight
+  int NumFlights() const { return static_cast<int>(duration_s.size()); }
+};
+FlightTimes SplitFlights(const std::vector<double>& times_s);
+
+// The direction a camera looks (its optical axis, +z of the OpenCV camera
+// frame) in the world frame of the pose.
+Eigen::Vector3d OpticalAxisInWorld(const Pose& pose);
+
+// The viewing geometry of the registered images in the model's own frame:
+// whether the block is a nadir survey, so that its mean optical axis may be
+// taken as the vertical. Nadir: the axes gather within 15° (median angle
+// from their mean) and, where the camera centres span a plane (the flight
+// level), the mean axis is within 15° of its normal.
+struct ViewingGeometry {
+  int images = 0;
+  Eigen::Vector3d mean_axis = Eigen::Vector3d::Zero();  // unit, model frame
+  double spread_deg = 0.0;          // median angle of the axes from their mean
+  bool plane_measured = false;      // centres span two dimensions
+  double axis_to_flight_plane_normal_deg = 0.0;
+  bool nadir = false;
+  std::string reason;               // why (not)
+};
+ViewingGeometry MeasureViewingGeometry(const SparseModel& model);
+
+// Tilt of each registered image's optical axis from straight down (degrees),
+// in an up-is-z frame; summarised by median, mean axis and largest.
+struct TiltStats {
+  int images = 0;
+  double mean_axis_tilt_deg = 0.0;  // of the mean optical axis: the block's tilt
+  double median_deg = 0.0;
+  double max_deg = 0.0;
+};
+TiltStats MeasureTilt(const SparseModel& model);
+
+// Similarity from the model frame to ENU that turns down_in_model (the mean
+// optical axis) to −U and fits the rest to the GPS horizontally only: scale,
+// heading and E, N translation by a robust 2D similarity (2-point samples,
+// inliers within threshold_m, least-squares refit); U translation the median
+// height difference. Its residuals keep the GPS height errors whole (none is
+// absorbed by a tilt). std::nullopt with fewer than 2 distinct positions.
+std::optional<SimilarityFit> FitLevelledSimilarity(const std::vector<Eigen::Vector3d>& from,
+                                                   const std::vector<Eigen::Vector3d>& to,
+                                                   const Eigen::Vector3d& down_in_model, double threshold_m);
+
+// A linear trend in time of GPS-minus-camera residuals (E, N, U), per flight:
+// slope by least squares (after trimming residuals beyond 4 robust
+// deviations of a first fit), its standard error from the scatter about the
+// line, and significant where the slope is beyond 5 standard errors and the
+// drift over the flight beyond 3 prior sigmas (sigma_h for E, N; sigma_v for U).
+struct DriftTrend {
+  struct Flight {
+    int images = 0;
+    double duration_s = 0.0;
+    Eigen::Vector3d rate_m_per_s = Eigen::Vector3d::Zero();
+    Eigen::Vector3d rate_sigma = Eigen::Vector3d::Zero();
+    Eigen::Vector3d scatter_m = Eigen::Vector3d::Zero();  // RMS about the line
+  };
+  std::vector<Flight> flights;
+  std::array<bool, 3> significant_axes = {false, false, false};
+  bool Significant() const { return significant_axes[0] || significant_axes[1] || significant_axes[2]; }
+};
+DriftTrend FitDriftTrend(const std::vector<Eigen::Vector3d>& residuals, const FlightTimes& flights,
+                         double sigma_h_m, double sigma_v_m);
+
+}  // namespace aerotri
