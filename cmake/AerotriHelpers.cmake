@@ -87,6 +87,11 @@ function(aerotri_add_test module name)
   set(target test_${module}_${name})
   add_executable(${target} ${ARG_SOURCES})
   target_link_libraries(${target} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+  # The unit tier's executables, for the `unit_tier` target (scripts/sanitize.sh
+  # builds only what the tier runs).
+  if(ARG_TIER STREQUAL "unit")
+    set_property(GLOBAL APPEND PROPERTY AEROTRI_UNIT_TIER_TARGETS ${target})
+  endif()
   target_compile_definitions(${target} PRIVATE
     AEROTRI_SHARED_DATA="${AEROTRI_SHARED_DATA}"
     AEROTRI_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
