@@ -131,6 +131,50 @@ TEST(Dense, PairMovingAlongItsViewIsNotMatched) {
   EXPECT_TRUE(cloud.positions.empty());
 }
 
+// The fusion rules on depth maps of known content (voxel 0.1 m):
+//  - two maps on one surface, 0.1 m apart in height (one voxel): they
+//    agree, the surface is kept;
+//  - a blunder of one map 3 m above where the other map has points: no
+//    agreement, dropped;
+//  - ground only one map saw (a block's rim): nothing to disagree with, kept;
+//  - with single_map_where_alone off, that rim is dropped.
+TEST(DenseFusion, AgreementWithinAVoxelAndALoneMapStands) {
+  testing::TempDir dir;
+  const double res = 0.1;
+  std::vector<Eigen::Vector3d> a, b;
+  for (double x = 0.05; x < 10.0; x += 0.1) {
+    for (double y = 0.05; y < 4.0; y += 0.1) {
+      a.emplace_back(x, y, 0.05);         // the surface, whole strip
+      if (x < 5.0) b.emplace_back(x, y, 0.15);  // one voxel higher, first half
+    }
+  }
+  for (double x = 1.05; x < 2.0; x += 0.1) b.emplace_back(x, 2.05, 3.05);  // blunder over shared ground
+  WriteDepthMap(dir.path() / "a.pts", a, {});
+  WriteDepthMap(dir.path() / "b.pts", b, {});
+  DenseOptions o;
+  DenseSummary summary;
+  const DenseCloud cloud = FuseDepthMaps({dir.path() / "a.pts", dir.path() / "b.pts"}, res, o, &summary);
+  int shared = 0, rim = 0, blunder = 0;
+  for (const Eigen::Vector3d& p : cloud.positions) {
+    if (p.z() > 1.0) {
+      ++blunder;
+    } else if (p.x() < 4.8) {
+      ++shared;
+    } else if (p.x() > 6.4) {
+      ++rim;  // beyond the coarse cells (1.6 m) that b reaches
+    }
+  }
+  EXPECT_EQ(blunder, 0);
+  EXPECT_GE(shared, 2 * 48 * 40 * 9 / 10);  // both maps' voxels, nearly all
+  EXPECT_GE(rim, 36 * 40 * 9 / 10);
+  o.single_map_where_alone = false;
+  const DenseCloud strict = FuseDepthMaps({dir.path() / "a.pts", dir.path() / "b.pts"}, res, o, &summary);
+  for (const Eigen::Vector3d& p : strict.positions) EXPECT_LT(p.x(), 5.1);
+  o.agreement_voxels = 0;
+  const DenseCloud exact = FuseDepthMaps({dir.path() / "a.pts", dir.path() / "b.pts"}, res, o, &summary);
+  EXPECT_TRUE(exact.positions.empty()) << exact.positions.size();
+}
+
 TEST(ParallelFor, RunsEveryIndexOnce) {
   std::vector<std::atomic<int>> hits(1000);
   ParallelFor(hits.size(), 2, [&](size_t k) { ++hits[k]; });

@@ -59,19 +59,20 @@ std::vector<std::vector<Partner>> ChoosePartners(const SparseModel& model, const
       }
     }
   }
-  std::vector<std::vector<std::pair<double, Partner>>> scored(n);
+  std::vector<std::vector<std::pair<double, Partner>>> scored(n), wide_scored(n);
   for (auto& [key, v] : angles) {
     if (v.size() < 30) continue;
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     const double median = v[v.size() / 2];
-    if (median < o.min_angle_deg || median > o.max_angle_deg) continue;
+    const bool wide = median > o.max_angle_deg && median <= o.max_angle_across_deg;
+    if (median < o.min_angle_deg || (median > o.max_angle_deg && !wide)) continue;
     if (!SideBySide(model.images[key.first], model.images[key.second])) continue;
     const double weight = (median >= 5.0 && median <= 15.0) ? 1.0 : 0.5;
     const double score = weight * static_cast<double>(v.size());
     for (int k = 0; k < 2; ++k) {
       const int i = k == 0 ? key.first : key.second;
       const int j = k == 0 ? key.second : key.first;
-      scored[i].push_back({score, {j, static_cast<int>(v.size()), median}});
+      (wide ? wide_scored : scored)[i].push_back({score, {j, static_cast<int>(v.size()), median}});
     }
   }
   std::vector<std::vector<Partner>> best(n);
@@ -79,6 +80,34 @@ std::vector<std::vector<Partner>> ChoosePartners(const SparseModel& model, const
     std::sort(scored[i].begin(), scored[i].end(), [](const auto& a, const auto& b) { return a.first > b.first; });
     for (size_t k = 0; k < scored[i].size() && static_cast<int>(k) < o.partners_per_image; ++k) {
       best[i].push_back(scored[i][k].second);
+    }
+    // Across the strip as well as along it: the best partner whose baseline
+    // turns at least 45 degrees from the best one's (a neighbouring strip),
+    // so that ground seen from two strips is matched too.
+    if (!o.partner_across || best[i].empty()) continue;
+    const Eigen::Vector3d ci = model.images[i].pose.centre_in_world;
+    const Eigen::Vector3d along = (model.images[best[i][0].image].pose.centre_in_world - ci).normalized();
+    bool have_across = false;
+    for (const Partner& p : best[i]) {
+      const Eigen::Vector3d b = (model.images[p.image].pose.centre_in_world - ci).normalized();
+      have_across |= std::abs(b.dot(along)) < std::cos(45.0 * kDeg);
+    }
+    if (have_across) continue;
+    // Strips are often farther apart than a pair along them: the across
+    // partner may have a wider angle (up to max_angle_across_deg).
+    std::sort(wide_scored[i].begin(), wide_scored[i].end(),
+              [](const auto& a, const auto& b) { return a.first > b.first; });
+    bool found = false;
+    for (const auto* list : {&scored[i], &wide_scored[i]}) {
+      for (const auto& [score, p] : *list) {
+        const Eigen::Vector3d b = (model.images[p.image].pose.centre_in_world - ci).normalized();
+        if (std::abs(b.dot(along)) < std::cos(45.0 * kDeg)) {
+          best[i].push_back(p);
+          found = true;
+          break;
+        }
+      }
+      if (found) break;
     }
   }
   return best;
@@ -165,6 +194,8 @@ class DepthPoints {
 // voxels); tiles run on all cores.
 DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& o,
                 DenseSummary* s) {
+  DenseSummary unused;
+  if (s == nullptr) s = &unused;
   DenseCloud cloud;
   cloud.resolution_m = res;
   if (files.empty()) return cloud;
@@ -221,28 +252,70 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
     }
     std::sort(records.begin(), records.end(),
               [](const Record& a, const Record& b) { return a.key != b.key ? a.key < b.key : a.file < b.file; });
+    // The voxels (runs of one key) and how many depth maps put a point in
+    // each; a map's vote counts in its voxel and the voxels up to
+    // agreement_voxels above and below (pairs at small angles disagree in
+    // depth by a voxel or two where they agree in plan).
+    std::vector<size_t> start;
+    for (size_t a = 0; a < records.size(); ++a) {
+      if (a == 0 || records[a].key != records[a - 1].key) start.push_back(a);
+    }
+    start.push_back(records.size());
+    const size_t voxels = start.size() - 1;
+    constexpr std::uint64_t kZMask = (std::uint64_t{1} << 21) - 1;
+    auto column = [](std::uint64_t key) { return key >> 21; };
+    // Distinct files over the voxels v0..v1 (consecutive runs).
+    auto count_files = [&](size_t v0, size_t v1) {
+      std::vector<std::uint16_t> files;
+      for (size_t k = start[v0]; k < start[v1 + 1]; ++k) files.push_back(records[k].file);
+      std::sort(files.begin(), files.end());
+      return static_cast<int>(std::unique(files.begin(), files.end()) - files.begin());
+    };
+    // Where one depth map alone saw the ground (a strip's rim, seen by one
+    // pair of photos), there is no second opinion to ask: its points stand.
+    // A coarse cell (16 x 16 voxel columns) with points of two or more maps
+    // asks for agreement.
+    auto cell_of = [&](std::uint64_t key) { return ((key >> 46) << 17) | ((key >> 25) & 0x1FFFF); };
+    std::unordered_map<std::uint64_t, std::pair<std::uint16_t, int>> maps_in_cell;  // first file, distinct files
+    if (o.single_map_where_alone) {
+      for (const Record& r : records) {
+        auto [it, inserted] = maps_in_cell.try_emplace(cell_of(r.key), r.file, 1);
+        if (!inserted && it->second.second == 1 && it->second.first != r.file) it->second.second = 2;
+      }
+    }
     DenseCloud& part = parts[t];
-    for (size_t a = 0; a < records.size();) {
-      size_t b = a;
+    for (size_t v = 0; v < voxels; ++v) {
+      const std::uint64_t key = records[start[v]].key;
+      const std::uint64_t z = key & kZMask;
+      auto near = [&](size_t u) {
+        const std::uint64_t other = records[start[u]].key;
+        const std::uint64_t dz = (other & kZMask) > z ? (other & kZMask) - z : z - (other & kZMask);
+        return column(other) == column(key) && dz <= static_cast<std::uint64_t>(o.agreement_voxels);
+      };
+      size_t v0 = v, v1 = v;
+      while (v0 > 0 && near(v0 - 1)) --v0;
+      while (v1 + 1 < voxels && near(v1 + 1)) ++v1;
+      const int views = count_files(v0, v1);
+      bool keep = views >= o.min_views;
+      if (!keep && o.single_map_where_alone) {
+        const auto it = maps_in_cell.find(cell_of(key));
+        keep = it != maps_in_cell.end() && it->second.second == 1;
+      }
+      if (!keep) continue;
       double sum[3] = {0, 0, 0};
       std::uint32_t rgb[3] = {0, 0, 0};
-      int views = 0;
-      for (; b < records.size() && records[b].key == records[a].key; ++b) {
-        const Record& r = records[b];
+      for (size_t k = start[v]; k < start[v + 1]; ++k) {
+        const Record& r = records[k];
         sum[0] += r.x;
         sum[1] += r.y;
         sum[2] += r.z;
         for (int c = 0; c < 3; ++c) rgb[c] += r.rgb[c];
-        if (b == a || records[b - 1].file != r.file) ++views;
       }
-      const double n = static_cast<double>(b - a);
-      if (views >= o.min_views) {
-        part.positions.emplace_back(sum[0] / n, sum[1] / n, sum[2] / n);
-        part.colours.push_back({static_cast<std::uint8_t>(rgb[0] / n), static_cast<std::uint8_t>(rgb[1] / n),
-                                static_cast<std::uint8_t>(rgb[2] / n)});
-        part.views.push_back(static_cast<std::uint16_t>(views));
-      }
-      a = b;
+      const double n = static_cast<double>(start[v + 1] - start[v]);
+      part.positions.emplace_back(sum[0] / n, sum[1] / n, sum[2] / n);
+      part.colours.push_back({static_cast<std::uint8_t>(rgb[0] / n), static_cast<std::uint8_t>(rgb[1] / n),
+                              static_cast<std::uint8_t>(rgb[2] / n)});
+      part.views.push_back(static_cast<std::uint16_t>(views));
     }
   });
   for (const DenseCloud& part : parts) {
@@ -257,6 +330,21 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
 }
 
 }  // namespace
+
+DenseCloud FuseDepthMaps(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& options,
+                         DenseSummary* summary) {
+  return Fuse(files, res, options, summary);
+}
+
+void WriteDepthMap(const std::filesystem::path& path, const std::vector<Eigen::Vector3d>& points,
+                   const std::vector<std::array<std::uint8_t, 3>>& colours) {
+  DepthPoints d;
+  for (size_t k = 0; k < points.size(); ++k) {
+    const auto rgb = k < colours.size() ? colours[k] : std::array<std::uint8_t, 3>{128, 128, 128};
+    d.Add(points[k], rgb[0], rgb[1], rgb[2]);
+  }
+  d.Write(path);
+}
 
 double MedianGsd(const SparseModel& model) {
   std::vector<double> gsd;

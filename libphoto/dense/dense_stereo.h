@@ -7,7 +7,8 @@
 //
 //  1. Each registered image is paired with the neighbours (two by default)
 //     that share the most sparse points at a triangulation angle between 3
-//     and 25 degrees.
+//     and 25 degrees, and with the best one across the strip when those two
+//     are both along it.
 //  2. The pair is rectified by Fusiello's construction (common rotation with
 //     x along the baseline), through the exact Brown model of each camera, so
 //     that disparity is horizontal whatever the flight direction.
@@ -15,8 +16,10 @@
 //     turned into points in the adjustment frame (ENU).
 //  4. Each depth map's points go to a file; they are then fused tile by tile
 //     in a voxel grid at the dense resolution, and a voxel is kept only when
-//     at least min_views depth maps put a point in it, which removes the
-//     blunders of single pairs. Memory is bounded by one image pair and one
+//     at least min_views depth maps put a point in it or in the voxels just
+//     above and below it (agreement_voxels), which removes the blunders of single pairs; where
+//     one depth map alone saw the ground there is nothing to agree with and
+//     its points are kept (single_map_where_alone). Memory is bounded by one image pair and one
 //     tile of voxels, whatever the survey's size.
 //
 // Why pairwise SGM rather than multi-view plane sweep: on the sample survey
@@ -40,9 +43,18 @@ namespace aerotri {
 struct DenseOptions {
   double resolution_m = 0.0;  // voxel size; 0: the median GSD of the images
   int min_views = 2;          // depth maps that must agree on a voxel
+  int agreement_voxels = 1;   // ... or on the voxels this far above or below it
+  // Where a single depth map has points in a 16 x 16-voxel cell (ground seen
+  // by one pair of photos only, as at a block's rim), keep them: there is no
+  // second map to agree or disagree.
+  bool single_map_where_alone = true;
   int partners_per_image = 2; // depth maps per image (its best-matching neighbours)
+  // One more partner across the strip (baseline >= 45 deg from the best
+  // partner's) when none of the best is: ground seen from two strips.
+  bool partner_across = true;
   double min_angle_deg = 3.0;
   double max_angle_deg = 25.0;
+  double max_angle_across_deg = 40.0;  // for the partner across the strip
   int block_size = 5;         // SGBM matching window (px)
   double image_scale = 1.0;   // of the working-resolution images
   int num_threads = 0;
@@ -74,6 +86,15 @@ DenseCloud ComputeDenseCloud(const SparseModel& model,
                              const std::function<cv::Mat(int)>& load_image,
                              const DenseOptions& options, const ProgressCallback& progress,
                              DenseSummary* summary);
+
+// Step 4 alone: fuses depth-point files (as ComputeDenseCloud writes them
+// into work_dir) at voxel size res under options' agreement rules.
+DenseCloud FuseDepthMaps(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& options,
+                         DenseSummary* summary);
+// Writes one depth map's points (adjustment frame) and colours in the file
+// format FuseDepthMaps reads, atomically.
+void WriteDepthMap(const std::filesystem::path& path, const std::vector<Eigen::Vector3d>& points,
+                   const std::vector<std::array<std::uint8_t, 3>>& colours);
 
 // Median ground sample distance (m) of the registered images: depth of their
 // sparse points over focal length.

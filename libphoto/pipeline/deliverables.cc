@@ -309,6 +309,126 @@ json Coverage(const SparseModel& model, const Raster& dsm, const GeoFrame& g) {
   return {{"nx", nx}, {"ny", ny}, {"counts", counts}};
 }
 
+// The DSM against the ground the photos cover (issue 17: a raster's valid
+// share says nothing when its extent is a bounding box). Every ground sample
+// of the union of the DSM's extent and the photos' footprints is projected
+// into the photos (at the DSM's height where it has one, else the DSM's
+// median height); the ground seen by two or more photos is what dense
+// matching could cover, and the share of it with a DSM height is the
+// coverage. Samples on a grid of at most ~160,000 cells; a 60 x N map of
+// the states for the report: 0 seen by fewer than 2 photos, 1 covered,
+// 2 seen by 2 or more but without a DSM height.
+json FootprintCoverage(const SparseModel& model, const Raster& dsm, const GeoFrame& g) {
+  json out = {{"method", "ground seen by 2 or more photos (each photo's frame projected on the DSM, or on its median "
+                         "height outside it) against the DSM's valid cells"}};
+  std::vector<float> valid_z;
+  for (size_t k = 0; k < dsm.values.size(); k += std::max<size_t>(1, dsm.values.size() / 200000)) {
+    if (dsm.values[k] != static_cast<float>(dsm.nodata)) valid_z.push_back(dsm.values[k]);
+  }
+  if (valid_z.empty() || dsm.width <= 0) return out;
+  std::nth_element(valid_z.begin(), valid_z.begin() + valid_z.size() / 2, valid_z.end());
+  const double median_z = valid_z[valid_z.size() / 2];
+  auto enu_of = [&](double x, double y, double z) { return g.frame.EnuFromGeodetic(g.crs.ToGeodetic({x, y, z})); };
+  const double ground_up = enu_of(dsm.X(0.5 * dsm.width), dsm.Y(0.5 * dsm.height), median_z).z();
+
+  // Each photo's footprint on the ground plane: its centre and radius (ENU),
+  // and the extent of its corners in the CRS.
+  struct Footprint {
+    const Image* image;
+    Eigen::Vector2d centre;
+    double radius;
+  };
+  std::vector<Footprint> footprints;
+  double x0 = dsm.geotransform[0], x1 = dsm.geotransform[0] + dsm.width * dsm.geotransform[1];
+  double y1 = dsm.geotransform[3], y0 = dsm.geotransform[3] + dsm.height * dsm.geotransform[5];
+  for (const Image& image : model.images) {
+    if (!image.registered) continue;
+    const Camera& cam = model.cameras[image.camera];
+    const Eigen::Vector3d c = image.pose.centre_in_world;
+    double radius = 0.0;
+    bool ok = true;
+    for (const Eigen::Vector2d corner : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(cam.width - 0.5, -0.5),
+                                         Eigen::Vector2d(-0.5, cam.height - 0.5),
+                                         Eigen::Vector2d(cam.width - 0.5, cam.height - 0.5)}) {
+      const auto ray = cam.RayFromImage(corner);
+      if (!ray) {
+        ok = false;
+        break;
+      }
+      const Eigen::Vector3d d = image.pose.cam_from_world.conjugate() * *ray;
+      // A corner ray at or above the horizon: the footprint is unbounded (an
+      // oblique photo); such a photo is judged by projection alone, within
+      // five flying heights.
+      const double t = d.z() < -1e-3 ? (ground_up - c.z()) / d.z() : -1.0;
+      if (!(t > 0.0) || t * d.head<2>().norm() > 5.0 * std::abs(c.z() - ground_up)) {
+        radius = std::max(radius, 5.0 * std::abs(c.z() - ground_up));
+        continue;
+      }
+      const Eigen::Vector3d on_ground = c + t * d;
+      radius = std::max(radius, (on_ground - c).head<2>().norm());
+      const Eigen::Vector3d xyz = g.crs.FromGeodetic(g.frame.GeodeticFromEnu(on_ground));
+      x0 = std::min(x0, xyz.x()), x1 = std::max(x1, xyz.x());
+      y0 = std::min(y0, xyz.y()), y1 = std::max(y1, xyz.y());
+    }
+    if (ok) footprints.push_back({&image, c.head<2>(), 1.05 * radius});
+  }
+  const double cell = std::abs(dsm.geotransform[1]);
+  const double step = std::max(cell, std::sqrt((x1 - x0) * (y1 - y0) / 160000.0));
+  const int nx = std::max(1, static_cast<int>(std::ceil((x1 - x0) / step)));
+  const int ny = std::max(1, static_cast<int>(std::ceil((y1 - y0) / step)));
+  const int mx = 60, my = std::max(1, static_cast<int>(std::lround(60.0 * ny / nx)));
+  std::vector<int> map_seen(static_cast<size_t>(mx) * my, 0), map_covered(map_seen.size(), 0);
+  long long seen2 = 0, covered = 0, seen1 = 0, outside = 0, exactly2 = 0, covered2 = 0;
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const double x = x0 + (i + 0.5) * step, y = y1 - (j + 0.5) * step;
+      const int px = static_cast<int>(std::floor((x - dsm.geotransform[0]) / dsm.geotransform[1]));
+      const int py = static_cast<int>(std::floor((y - dsm.geotransform[3]) / dsm.geotransform[5]));
+      const bool inside = px >= 0 && py >= 0 && px < dsm.width && py < dsm.height;
+      const bool has_z = inside && dsm.at(px, py) != static_cast<float>(dsm.nodata);
+      const Eigen::Vector3d p = enu_of(x, y, has_z ? dsm.at(px, py) : median_z);
+      int views = 0;
+      for (const Footprint& f : footprints) {
+        if ((p.head<2>() - f.centre).norm() > f.radius) continue;
+        const Eigen::Vector3d pc = f.image->pose.CamFromWorld(p);
+        if (pc.z() <= 0) continue;
+        const Camera& cam = model.cameras[f.image->camera];
+        const Eigen::Vector2d xy = cam.ImageFromCamera(pc);
+        if (xy.x() >= 0 && xy.y() >= 0 && xy.x() < cam.width && xy.y() < cam.height && ++views >= 3) break;
+      }
+      if (views == 1) ++seen1;
+      if (views < 2) continue;
+      ++seen2;
+      if (views == 2) {
+        ++exactly2;
+        covered2 += has_z;
+      }
+      covered += has_z;
+      outside += !inside;
+      const size_t m = static_cast<size_t>(std::min(my - 1, j * my / ny)) * mx + std::min(mx - 1, i * mx / nx);
+      ++map_seen[m];
+      map_covered[m] += has_z;
+    }
+  }
+  std::vector<int> map(map_seen.size(), 0);
+  for (size_t m = 0; m < map.size(); ++m) {
+    if (map_seen[m] > 0) map[m] = 2 * map_covered[m] >= map_seen[m] ? 1 : 2;
+  }
+  const double a = step * step;
+  out["sample_m"] = step;
+  out["seen_by_2_m2"] = seen2 * a;
+  out["seen_by_1_m2"] = seen1 * a;
+  out["covered_m2"] = covered * a;
+  // Ground seen by exactly two photos is one stereo pair's at most.
+  out["seen_by_exactly_2_m2"] = exactly2 * a;
+  out["covered_of_seen_by_exactly_2_m2"] = covered2 * a;
+  out["outside_dsm_extent_m2"] = outside * a;
+  out["fraction"] = seen2 > 0 ? static_cast<double>(covered) / seen2 : 0.0;
+  out["map"] = {{"nx", mx}, {"ny", my}, {"states", map}, {"extent", {x0, y0, x1, y1}},
+                {"legend", "0: seen by fewer than 2 photos, 1: DSM, 2: seen by 2 or more photos, no DSM"}};
+  return out;
+}
+
 // A preview of the orthomosaic, at most max_size pixels wide (GDAL reads its
 // overviews), transparent cells white; with what its scale bar needs.
 DsmPreview OrthoPreviewPng(const fs::path& ortho, int max_size) {
@@ -670,7 +790,9 @@ bool RunReportStage(const PipelineOptions& o) {
                          {"description", dense.value("heights", "as the output CRS defines them")}};
     report["dsm"] = dense["dsm"];
     report["dsm"]["check_points"] = DsmAtCheckPoints(report, dsm, g, deliverable);
-    report["coverage"] = Coverage(ReadColmapText(o.workspace / "georeferenced"), dsm, deliverable);
+    const SparseModel georeferenced = ReadColmapText(o.workspace / "georeferenced");
+    report["coverage"] = Coverage(georeferenced, dsm, deliverable);
+    report["dsm"]["footprint_coverage"] = FootprintCoverage(georeferenced, dsm, deliverable);
     DsmPreview preview = DsmPreviewPng(o.workspace / "dsm.tif", 900);
     if (!preview.png.empty()) {
       report["dsm"]["preview"] = preview.info;
