@@ -91,6 +91,41 @@ TEST(HtmlReport, FiveHundredImagesGetDistributionsNotFiveHundredBars) {
   EXPECT_NE(large.find("largest: IMG_1499.JPG 0.699"), std::string::npos);
 }
 
+// The GNSS drift as estimated, the cameras' tilt, and the DSM's coverage of
+// the ground the photos see (a warning below 90 %).
+TEST(HtmlReport, AttitudeDriftAndFootprintCoverage) {
+  json r = Images(5, true);
+  r["adjustment"] = {{"attitude",
+                      {{"nadir_block", true},
+                       {"viewing", "optical axes within 2.3 deg (median) of their mean"},
+                       {"mean_axis_tilt_deg", 0.14},
+                       {"median_tilt_deg", 2.3},
+                       {"max_tilt_deg", 6.7}}}};
+  r["gps_drift"] = {{"note", "levelled by its mean optical axis"},
+                    {"estimated", true},
+                    {"nadir_prior", true},
+                    {"nadir_prior_sigma_deg_per_photo", 5.0},
+                    {"axes", {{"e", false}, {"n", false}, {"u", true}}},
+                    {"flights",
+                     {{{"images", 88},
+                       {"duration_s", 174.0},
+                       {"trend_m_per_s", {{"e_m", 0.0}, {"n_m", 0.0}, {"u_m", 0.5805}}},
+                       {"rate_m_per_s", {{"e_m", 0.0}, {"n_m", 0.0}, {"u_m", 0.5803}}},
+                       {"rate_sigma_m_per_s", {{"e_m", 0.0}, {"n_m", 0.0}, {"u_m", 0.0083}}}}}}};
+  r["dsm"] = {{"footprint_coverage",
+               {{"seen_by_2_m2", 10000.0}, {"covered_m2", 8460.0}, {"fraction", 0.846},
+                {"seen_by_exactly_2_m2", 2500.0}, {"seen_by_1_m2", 1200.0}}}};
+  const std::string html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("<h2>Attitude and GNSS drift</h2>"), std::string::npos);
+  EXPECT_NE(html.find("mean optical axis 0.1&deg;"), std::string::npos);
+  EXPECT_NE(html.find("<td>U</td><td>0.5805</td><td>0.5803</td><td>0.0083</td><td>101.0</td>"), std::string::npos)
+      << html.substr(html.find("Attitude and GNSS"), 1500);
+  EXPECT_NE(html.find("<p class='warn'>The DSM covers 84.6 % of the ground seen by two or more photos"),
+            std::string::npos);
+  r["dsm"]["footprint_coverage"]["fraction"] = 0.95;
+  EXPECT_NE(RenderHtmlReport(r, "").find("<p>The DSM covers 95.0 %"), std::string::npos);
+}
+
 TEST(HtmlReport, CameraCalibrationTieTracksAndTimings) {
   json r = Images(5, true);
   r["adjustment"] = {

@@ -893,6 +893,19 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
       << " candidates.</p>" << PerLabelChart(mnames, pairs, "verified pairs", "#e90", "images", "image pairs", 0);
   }
   h << "<h3>Coverage</h3>" << CoverageMap(r.value("coverage", json()));
+  {
+    // The DSM against the ground the photos cover (not against its raster).
+    const json& fc = r.value("dsm", json::object()).value("footprint_coverage", json::object());
+    const double seen = Get(fc, "seen_by_2_m2");
+    if (std::isfinite(seen) && seen > 0.0) {
+      const double fraction = Get(fc, "fraction");
+      h << "<p" << (fraction < 0.9 ? " class='warn'" : "") << ">The DSM covers " << Num(100.0 * fraction, 1)
+        << " % of the ground seen by two or more photos (" << Num(Get(fc, "covered_m2"), 0) << " of "
+        << Num(seen, 0) << " m&sup2;; " << Num(Get(fc, "seen_by_exactly_2_m2"), 0)
+        << " m&sup2; of it seen by exactly two photos, one stereo pair at most; "
+        << Num(Get(fc, "seen_by_1_m2"), 0) << " m&sup2; more seen by one photo only).</p>";
+    }
+  }
   h << "<h2>Elevation model</h2>";
   if (!hillshade_png.empty()) {
     const auto& d = r.value("dsm", json::object());
