@@ -2,8 +2,10 @@
 #include "georef/gcp_file.h"
 
 #include <charconv>
+#include <cctype>
 #include <cmath>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -80,12 +82,22 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
     }
     static const char* kNames[] = {"geo_x", "geo_y", "geo_z", "im_x", "im_y"};
     double v[5];
+    bool no_height = false;
     for (int i = 0; i < 5; ++i) {
+      if (i == 2) {
+        std::string z = cols[2];
+        for (char& c : z) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        if (z == "nan" || z == "-") {
+          no_height = true;
+          v[2] = std::numeric_limits<double>::quiet_NaN();
+          continue;
+        }
+      }
       const auto value = ParseNumber(cols[i]);
       if (!value) {
         throw ParseError(p, number, std::string("expected a number for ") + kNames[i] +
-                                        " (column " + std::to_string(i + 1) + "), got '" +
-                                        cols[i] + "'");
+                                        " (column " + std::to_string(i + 1) + ")" +
+                                        (i == 2 ? " or 'nan' (no surveyed height)" : "") + ", got '" + cols[i] + "'");
       }
       v[i] = *value;
     }
@@ -141,6 +153,7 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
       GroundPoint point;
       point.name = name;
       point.xyz = xyz;
+      point.horizontal_only = no_height;
       point.first_line = number;
       by_name[name] = file.points.size();
       file.points.push_back(point);
@@ -151,8 +164,9 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
     // degrees), not relatively (1e-6 of a UTM northing is 5 m).
     const bool degrees = std::abs(xyz.x()) <= 360.0 && std::abs(xyz.y()) <= 360.0;
     const double tol_xy = degrees ? 1e-8 : 1e-3;
-    if (std::abs(point.xyz.x() - xyz.x()) > tol_xy || std::abs(point.xyz.y() - xyz.y()) > tol_xy ||
-        std::abs(point.xyz.z() - xyz.z()) > 1e-3) {
+    const bool same_z = point.horizontal_only || no_height ? point.horizontal_only == no_height
+                                                           : std::abs(point.xyz.z() - xyz.z()) <= 1e-3;
+    if (std::abs(point.xyz.x() - xyz.x()) > tol_xy || std::abs(point.xyz.y() - xyz.y()) > tol_xy || !same_z) {
       throw ParseError(p, number, "point '" + name + "' has other coordinates here than on line " +
                                       std::to_string(point.first_line));
     }

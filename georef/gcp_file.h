@@ -16,7 +16,9 @@
 //                                         (all three; they win over h / v)
 //   sigma_px=0.5                          this measurement's image sigma (px)
 // Other extras are ignored. Without a name, lines with identical coordinates
-// are one point.
+// are one point. A control point surveyed in plan only (a handheld GNSS
+// whose heights are worthless, a map-digitised corner) has geo_z "nan" (or
+// "-"): GroundPoint::horizontal_only, its height left to the adjustment.
 //
 // Pixels: OpenDroneMap reads these files through OpenSfM, whose pixel
 // coordinates put the centre of the top-left pixel at (0, 0) (OpenSfM
@@ -46,7 +48,8 @@ struct GcpMeasurement {
 
 struct GroundPoint {
   std::string name;
-  Eigen::Vector3d xyz;  // in the file's CRS, normalised axis order
+  Eigen::Vector3d xyz;  // in the file's CRS, normalised axis order; z NaN when horizontal_only
+  bool horizontal_only = false;  // geo_z "nan" or "-": no surveyed height
   std::optional<double> sigma_h_m;
   std::optional<double> sigma_v_m;
   std::optional<Eigen::Vector3d> sigma_xyz_m;  // on the CRS's axes

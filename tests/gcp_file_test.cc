@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <algorithm>
 #include <fstream>
 
@@ -96,6 +98,32 @@ TEST(GcpFile, WriteThenReadRoundTrips) {
   EXPECT_DOUBLE_EQ(*again.points[0].sigma_h_m, 0.015);
 }
 
+// A point surveyed in plan only: geo_z 'nan' (any case) or '-'; written
+// back as 'nan' and read again.
+TEST(GcpFile, HorizontalOnlyPointsHaveNoHeight) {
+  testing::TempDir dir;
+  Write(dir / "gcp_list.txt",
+        "EPSG:32632\n"
+        "384902.84 5150696.35 NaN 1024.5 768.5 IMG_0001.JPG H1\n"
+        "384902.84 5150696.35 nan 100 200 IMG_0002.JPG H1\n"
+        "384950.00 5150700.00 - 10 20 IMG_0002.JPG H2\n"
+        "384990.00 5150710.00 452.00 30 40 IMG_0003.JPG G3\n");
+  const GcpFile file = ReadGcpFile(dir / "gcp_list.txt");
+  ASSERT_EQ(file.points.size(), 3u);
+  EXPECT_TRUE(file.points[0].horizontal_only);
+  EXPECT_TRUE(std::isnan(file.points[0].xyz.z()));
+  EXPECT_EQ(file.points[0].measurements.size(), 2u);
+  EXPECT_TRUE(file.points[1].horizontal_only);
+  EXPECT_FALSE(file.points[2].horizontal_only);
+  EXPECT_DOUBLE_EQ(file.points[2].xyz.z(), 452.0);
+  WriteGcpFile(file, dir / "out.txt");
+  const GcpFile again = ReadGcpFile(dir / "out.txt");
+  ASSERT_EQ(again.points.size(), 3u);
+  EXPECT_TRUE(again.points[0].horizontal_only);
+  EXPECT_TRUE(again.points[1].horizontal_only);
+  EXPECT_NEAR(again.points[1].xyz.x(), 384950.0, 1e-6);
+}
+
 TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
   struct Case {
     std::string text;
@@ -104,7 +132,8 @@ TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
   };
   const std::vector<Case> cases = {
       {"EPSG:32632\n1 2 3 4 5\n", 2, "expected at least 6 columns"},
-      {"EPSG:32632\n1 2 x 4 5 a.jpg\n", 2, "expected a number for geo_z (column 3), got 'x'"},
+      {"EPSG:32632\n1 2 x 4 5 a.jpg\n", 2, "expected a number for geo_z (column 3) or 'nan' (no surveyed height), got 'x'"},
+      {"EPSG:32632\n1 2 nan 4 5 a.jpg P\n1 2 3 4 5 b.jpg P\n", 3, "other coordinates here than on line 2"},
       {"EPSG:32632\n\n1 2 3 -4 5 a.jpg\n", 3, "expected pixel coordinates >= -0.5"},
       {"EPSG:32632\n1 2 3 4 5 a.jpg P sigma_h=-1\n", 2, "positive number of metres for sigma_h"},
       {"EPSG:32632\n1 2 3 4 5 a.jpg P\n1 2 4 4 5 b.jpg P\n", 3, "other coordinates here than on line 2"},

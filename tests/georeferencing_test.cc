@@ -1029,5 +1029,37 @@ TEST(Georeferencing, CleanGpsIsNotTakenForADrift) {
   EXPECT_LT(report.tilt.mean_axis_tilt_deg, 3.0);
 }
 
+// Control in plan only (geo_z 'nan'): its height is the adjustment's; the
+// points still hold the plan, are reported without a vertical residual and
+// stay out of the 3D statistics; the check points keep their centimetres.
+TEST(Georeferencing, HorizontalOnlyControlHoldsThePlanAndLeavesTheHeightFree) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(44), {});
+  GcpFile control = scene.control;
+  ASSERT_GE(control.points.size(), 8u);
+  std::set<std::string> plan_only;
+  for (size_t k = 0; k < 3; ++k) {
+    control.points[k].xyz.z() = std::numeric_limits<double>::quiet_NaN();
+    control.points[k].horizontal_only = true;
+    plan_only.insert(control.points[k].name);
+  }
+  SparseModel model = ArbitraryFrame(scene.tie_model, 44);
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, scene.gps, &control, &scene.checks, Options());
+  SCOPED_TRACE(report.bundle.BriefReport());
+  EXPECT_EQ(report.control_stats.count, 5);
+  int seen = 0;
+  for (const GroundPointResult& r : report.control) {
+    if (!plan_only.count(r.name)) continue;
+    ++seen;
+    EXPECT_TRUE(r.horizontal_only);
+    ASSERT_TRUE(r.solved) << r.name << ": " << r.why_not;
+    EXPECT_TRUE(std::isnan(r.d_m.z()));
+    EXPECT_LT(r.d_m.head<2>().norm(), 0.05) << r.name;
+  }
+  EXPECT_EQ(seen, 3);
+  ASSERT_EQ(report.check_stats.count, 6);
+  EXPECT_LT(report.check_stats.rmse_3d_m, 0.08);
+  for (const Finding& f : report.findings) EXPECT_NE(f.severity, Severity::kError) << f.code << ": " << f.message;
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -26,6 +26,9 @@
 //   DOME                       warning  vertical residuals domed across the block
 //   MARK_BLUNDER               warning  Baarda's w-test rejects a target mark (point, image)
 //   MARK_DUPLICATED            warning  one target labelled as two points in one photo
+//   GPS_DRIFT                  warning  GPS positions trend in time: a drift per flight estimated
+//   GPS_TILT_REJECTED          warning  GPS heights would tilt a nadir block; levelled by its attitude
+//   CAMERA_ATTITUDE_IMPLAUSIBLE error   a nadir block adjusted more than 10 deg off vertical
 //   PRECISION_NOT_COMPUTED     warning  posterior sigmas and the w-test are missing (why)
 //   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model

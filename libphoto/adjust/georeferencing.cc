@@ -53,6 +53,7 @@ std::vector<View> ViewsOf(const SparseModel& model, int point_index) {
 }
 
 constexpr double kNadirPriorSigmaDeg = 5.0;  // per photo (GpsDriftReport)
+constexpr double kNoHeightSigmaM = 1e4;      // the vertical prior of a control point in plan only
 
 std::string FormatDegrees(double deg) {
   char text[32];
@@ -428,6 +429,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     for (const GcpFile* file : {control, checks}) {
       if (!file || (file == checks && n > 0)) continue;
       for (const GroundPoint& point : file->points) {
+        if (point.horizontal_only) continue;
         mean += point.xyz;
         ++n;
       }
@@ -441,11 +443,27 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   for (const GcpFile* file : {control, checks}) {
     if (!file) continue;
     const Crs& crs = file == control ? *control_crs : *check_crs;
+    // A point without a surveyed height is converted at the median height of
+    // the file's others (the horizontal position barely depends on it).
+    std::vector<double> heights;
+    for (const GroundPoint& point : file->points) {
+      if (!point.horizontal_only) heights.push_back(point.xyz.z());
+    }
+    double fill_z = 0.0;
+    if (!heights.empty()) {
+      std::nth_element(heights.begin(), heights.begin() + heights.size() / 2, heights.end());
+      fill_z = heights[heights.size() / 2];
+    }
     for (const GroundPoint& point : file->points) {
       SurveyedPoint s;
       s.source = &point;
-      s.geodetic = crs.ToGeodetic(point.xyz);
+      Eigen::Vector3d xyz = point.xyz;
+      if (point.horizontal_only) xyz.z() = fill_z;
+      s.geodetic = crs.ToGeodetic(xyz);
       s.role = file == control ? PointRole::kControl : PointRole::kCheck;
+      if (point.horizontal_only && s.role == PointRole::kCheck) {
+        s.excluded = "no surveyed height ('nan'): a check point needs all three coordinates";
+      }
       surveyed.push_back(s);
     }
   }
@@ -546,7 +564,9 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
         return v[v.size() / 2];
       };
       std::vector<double> ground;
-      for (const SurveyedPoint& s : surveyed) ground.push_back(frame.EnuFromGeodetic(s.geodetic).z());
+      for (const SurveyedPoint& s : surveyed) {
+        if (!s.source->horizontal_only) ground.push_back(frame.EnuFromGeodetic(s.geodetic).z());
+      }
       const double flying = ground.empty() ? 0.0 : std::abs(median(heights) - median(ground));
       const double limit = 3.0 * flying + 5.0 * median(sigmas) + 50.0;
       std::vector<std::string> far;
@@ -592,6 +612,11 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       prior.covariance = j_inv * sigma.cwiseAbs2().asDiagonal() * j_inv.transpose();
       prior.sigma_h_m = std::max(sigma.x(), sigma.y());
       prior.sigma_v_m = sigma.z();
+    }
+    if (s.source->horizontal_only) {
+      // In plan only: its height is the adjustment's (a prior of 10 km holds nothing).
+      prior.sigma_v_m = kNoHeightSigmaM;
+      prior.covariance.reset();
     }
     point.prior = prior;
     s.point_index = static_cast<int>(model->points.size());
@@ -650,6 +675,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     if (!t) continue;
     triangulated[s.point_index] = 1;
     model->points[s.point_index].position = t->position;
+    if (s.source->horizontal_only) continue;  // no height: no part in a 3D similarity
     control_points.push_back(s.point_index);
     control_from.push_back(t->position);
     const PositionPrior& p = *model->points[s.point_index].prior;
@@ -1219,7 +1245,15 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       r.solved = false;
       r.why_not = s.excluded;
     }
-    if (r.solved) (s.role == PointRole::kControl ? control_d : check_d).push_back(r.d_m);
+    if (s.source->horizontal_only && s.role == PointRole::kControl) {
+      // Its height is the adjustment's own: no vertical residual, and no
+      // part in the 3D statistics (which count the points they rest on).
+      r.horizontal_only = true;
+      r.d_m.z() = std::numeric_limits<double>::quiet_NaN();
+      r.surveyed_crs.z() = std::numeric_limits<double>::quiet_NaN();
+    } else if (r.solved) {
+      (s.role == PointRole::kControl ? control_d : check_d).push_back(r.d_m);
+    }
     const PointPrecision* precision = report.bundle.precision.ForPoint(s.point_index);
     if (r.solved && precision) {
       const Eigen::Matrix3d j = CrsFromEnuJacobian(frame, *out_crs, point.position);

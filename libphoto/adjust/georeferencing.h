@@ -100,6 +100,9 @@ struct GroundPointResult {
   bool solved = false;     // false: see why_not
   std::string why_not;
   int num_images = 0;      // measurements on images of the model
+  // Control in plan only (GroundPoint::horizontal_only): d_m.z() and
+  // surveyed_crs.z() are NaN, and the point is not in control_stats.
+  bool horizontal_only = false;
   Eigen::Vector3d surveyed_crs = Eigen::Vector3d::Zero();  // output CRS
   Eigen::Vector3d adjusted_crs = Eigen::Vector3d::Zero();
   Eigen::Vector3d d_m = Eigen::Vector3d::Zero();  // adjusted − surveyed (m)

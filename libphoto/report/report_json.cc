@@ -30,6 +30,7 @@ nlohmann::json PointsJson(const std::vector<GroundPointResult>& points, const Ac
     pj["name"] = p.name;
     pj["images"] = p.num_images;
     pj["solved"] = p.solved;
+    if (p.horizontal_only) pj["horizontal_only"] = true;  // dz_m and the surveyed height are null
     if (p.solved) {
       pj["dx_m"] = p.d_m.x();
       pj["dy_m"] = p.d_m.y();
