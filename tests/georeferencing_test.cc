@@ -315,8 +315,13 @@ GeoreferenceOptions MatchingSigmas() {
 // sigmas that describe the noise, (adjusted − surveyed) / sqrt(σ² + σ_survey²)
 // is standard normal on every axis. Independent check points carry the
 // cameras' covariance; inside the bundle they are free points.
-TEST(Georeferencing, CheckPointErrorsMatchTheirPosteriorSigmas) {
-  for (const bool in_bundle : {false, true}) {
+// Independent check points (false) and check points in the bundle (true),
+// as two cases: they run in parallel.
+class CheckPointSigmas : public ::testing::TestWithParam<bool> {};
+
+TEST_P(CheckPointSigmas, CheckPointErrorsMatchTheirPosteriorSigmas) {
+  {
+    const bool in_bundle = GetParam();
     double sum = 0.0;
     int n = 0;
     for (std::uint32_t seed = 40; seed < 46; ++seed) {
@@ -354,6 +359,10 @@ TEST(Georeferencing, CheckPointErrorsMatchTheirPosteriorSigmas) {
     EXPECT_LT(rms, 1.25);
   }
 }
+INSTANTIATE_TEST_SUITE_P(Georeferencing, CheckPointSigmas, ::testing::Bool(),
+                         [](const ::testing::TestParamInfo<bool>& info) {
+                           return info.param ? std::string("InTheBundle") : std::string("Independent");
+                         });
 
 // Camera centres against the truth over seeds, through the same statistic:
 // the posterior sigmas of the exterior orientation are honest too.
