@@ -61,6 +61,41 @@ TEST(BlockGeometry, TellsAFlatNadirBlockFromOneWithRelief) {
 
 // dz = a + amplitude r² / R² plus noise: the fit recovers the amplitude
 // within 3 of its own sigmas, and that sigma is consistent with the noise.
+// The block's vertical from its own geometry (gnss_drift.h), in an
+// arbitrary frame: a nadir grid is nadir whatever the frame; one line of
+// cameras (a strip, or a walk past a facade) is not taken for one; nor is a
+// grid of photos all tilted 35 degrees one way.
+TEST(ViewingGeometry, NadirGridYesOneLineNoObliqueNo) {
+  const Eigen::Quaterniond frame(Eigen::AngleAxisd(1.3, Eigen::Vector3d(0.3, -0.8, 0.5).normalized()));
+  auto block = [&](int rows, double tilt_deg) {
+    SparseModel model;
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < 8; ++c) {
+        Image image;
+        image.registered = true;
+        // Looking down (-z), tilted about the x axis, jittered by ~1 degree.
+        const double jitter = 0.017 * std::sin(3.0 * c + r);
+        const Eigen::Quaterniond world_from_cam =
+            Eigen::AngleAxisd(tilt_deg * M_PI / 180.0 + jitter, Eigen::Vector3d::UnitX()) *
+            Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+        image.pose.cam_from_world = (frame * world_from_cam).conjugate();
+        image.pose.centre_in_world = frame * Eigen::Vector3d(20.0 * c, 25.0 * r, 80.0 + 0.3 * std::cos(c + r));
+        model.images.push_back(image);
+      }
+    }
+    return model;
+  };
+  const ViewingGeometry grid = MeasureViewingGeometry(block(4, 0.0));
+  EXPECT_TRUE(grid.nadir) << grid.reason;
+  EXPECT_LT(grid.axis_to_flight_plane_normal_deg, 2.0);
+  const ViewingGeometry line = MeasureViewingGeometry(block(1, 0.0));
+  EXPECT_FALSE(line.nadir) << line.reason;
+  EXPECT_FALSE(line.plane_measured);
+  const ViewingGeometry oblique = MeasureViewingGeometry(block(4, 35.0));
+  EXPECT_FALSE(oblique.nadir) << oblique.reason;
+  EXPECT_NEAR(oblique.axis_to_flight_plane_normal_deg, 35.0, 2.0);
+}
+
 TEST(DomeTest, RecoversAnInjectedDomeAndFindsNoneWhereThereIsNone) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-100.0, 100.0);

@@ -105,20 +105,21 @@ ViewingGeometry MeasureViewingGeometry(const SparseModel& model) {
   if (g.spread_deg > 15.0) {
     std::snprintf(text, sizeof text, "the optical axes spread %.0f deg (median) about their mean: not a nadir block",
                   g.spread_deg);
-  } else if (g.plane_measured && g.axis_to_flight_plane_normal_deg > 15.0) {
+  } else if (!g.plane_measured) {
+    // One line of cameras: a nadir strip and a walk past a facade look the
+    // same without gravity; the block's vertical is not in its geometry.
+    std::snprintf(text, sizeof text,
+                  "the camera centres lie along one line: a nadir strip cannot be told from a side-looking "
+                  "walk, no vertical is assumed");
+  } else if (g.axis_to_flight_plane_normal_deg > 15.0) {
     std::snprintf(text, sizeof text,
                   "the mean optical axis is %.0f deg from the flight plane's normal: oblique or terrain-following",
                   g.axis_to_flight_plane_normal_deg);
   } else {
     g.nadir = true;
-    if (g.plane_measured) {
-      std::snprintf(text, sizeof text,
-                    "optical axes within %.1f deg (median) of their mean, %.1f deg from the flight plane's normal",
-                    g.spread_deg, g.axis_to_flight_plane_normal_deg);
-    } else {
-      std::snprintf(text, sizeof text, "optical axes within %.1f deg (median) of their mean (one strip)",
-                    g.spread_deg);
-    }
+    std::snprintf(text, sizeof text,
+                  "optical axes within %.1f deg (median) of their mean, %.1f deg from the flight plane's normal",
+                  g.spread_deg, g.axis_to_flight_plane_normal_deg);
   }
   g.reason = text;
   return g;

@@ -50,8 +50,9 @@ Eigen::Vector3d OpticalAxisInWorld(const Pose& pose);
 // The viewing geometry of the registered images in the model's own frame:
 // whether the block is a nadir survey, so that its mean optical axis may be
 // taken as the vertical. Nadir: the axes gather within 15° (median angle
-// from their mean) and, where the camera centres span a plane (the flight
-// level), the mean axis is within 15° of its normal.
+// from their mean), the camera centres span a plane (the flight level: one
+// line of cameras could as well be a walk past a facade), and the mean axis
+// is within 15° of its normal.
 struct ViewingGeometry {
   int images = 0;
   Eigen::Vector3d mean_axis = Eigen::Vector3d::Zero();  // unit, model frame
