@@ -54,6 +54,10 @@ std::vector<std::pair<int, int>> SelectPairs(const std::vector<std::optional<Eig
 
 namespace {
 
+// The state OpenCV's RNG is reset to before each RANSAC (a fixed seed:
+// runs are reproducible whatever the thread schedule).
+constexpr std::uint64_t kRansacSeed = 0x2545F4914F6CDD1DULL;
+
 PairMatches MatchOne(const ImageFeatures& a, const cv::Mat& a_desc, const ImageFeatures& b,
                      cv::flann::Index& b_index, int i, int j, const MatchOptions& options) {
   PairMatches result;
@@ -98,6 +102,10 @@ PairMatches MatchOne(const ImageFeatures& a, const cv::Mat& a_desc, const ImageF
     ib.emplace_back(b.keypoints[m[1]].x, b.keypoints[m[1]].y);
   }
   std::vector<std::uint8_t> hmask;
+  // OpenCV's RANSAC draws from its thread-local RNG, whose state would
+  // depend on which pairs this thread verified before: reseeded, a pair's
+  // result depends on the pair alone, however the threads are scheduled.
+  cv::theRNG().state = kRansacSeed;
   const cv::Mat h = cv::findHomography(ia, ib, cv::RANSAC, 2.0 * options.max_epipolar_px, hmask, 2000);
   if (!h.empty()) result.homography_inliers = static_cast<int>(std::count(hmask.begin(), hmask.end(), 1));
   return result;

@@ -16,6 +16,10 @@
 namespace aerotri {
 namespace {
 
+// The state OpenCV's RNG is reset to before each RANSAC (a fixed seed:
+// runs are reproducible whatever the thread schedule).
+constexpr std::uint64_t kRansacSeed = 0x2545F4914F6CDD1DULL;
+
 constexpr double kDeg = M_PI / 180.0;
 
 class Mapper {
@@ -170,6 +174,10 @@ class Mapper {
     if (a.size() < 30) return false;
     const double threshold = options_.max_reprojection_px / std::sqrt(Focal(m.i) * Focal(m.j));
     cv::Mat mask;
+    // OpenCV's RANSAC draws from a thread-local RNG that earlier work on
+    // this thread (matching, in the same process) has advanced by a
+    // schedule-dependent amount: reseeded, the result depends on the data.
+    cv::theRNG().state = kRansacSeed;
     cv::Mat e = cv::findEssentialMat(a, b, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.9999, threshold, mask);
     if (e.rows != 3 || e.cols != 3) return false;
     cv::Mat r, t;
@@ -293,6 +301,7 @@ class Mapper {
     cv::Mat rvec, tvec;
     inliers->clear();
     const double threshold = options_.max_reprojection_px / Focal(image);
+    cv::theRNG().state = kRansacSeed;  // as for the essential matrix
     const bool ok = cv::solvePnPRansac(world, rays, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec, false,
                                        2000, threshold, 0.9999, *inliers, cv::SOLVEPNP_AP3P);
     if (!ok || static_cast<int>(inliers->size()) < options_.min_pnp_inliers ||
