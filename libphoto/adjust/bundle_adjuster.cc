@@ -15,6 +15,7 @@
 #include <sstream>
 #include <thread>
 
+#include "libphoto/adjust/bundle_config.h"
 #include "libphoto/adjust/bundle_precision.h"
 #include "libphoto/adjust/dense_schur_solver.h"
 #include "libphoto/adjust/position_prior_cost.h"
@@ -79,59 +80,6 @@ std::unique_ptr<ceres::LossFunction> MakeLoss(const BundleOptions& options, doub
       return std::make_unique<ceres::TukeyLoss>(a);
   }
   return nullptr;
-}
-
-// Indices of the intrinsic parameters to refine for one camera.
-std::vector<int> RefinedParams(const Camera& camera,
-                               const BundleOptions& options) {
-  const CameraModelInfo& info = camera.info();
-  std::vector<int> refined;
-  switch (options.refine_intrinsics) {
-    case IntrinsicsRefinement::kNone:
-      break;
-    case IntrinsicsRefinement::kFocal:
-      refined = info.focal_params;
-      break;
-    case IntrinsicsRefinement::kFocalPrincipalPoint:
-      refined = info.focal_params;
-      refined.insert(refined.end(), info.principal_point_params.begin(),
-                     info.principal_point_params.end());
-      break;
-    case IntrinsicsRefinement::kAll:
-      for (int i = 0; i < info.num_params(); ++i) refined.push_back(i);
-      break;
-    case IntrinsicsRefinement::kList:
-      for (const std::string& name : options.refine_params) {
-        const auto it = std::find(info.param_names.begin(),
-                                  info.param_names.end(), Lower(name));
-        if (it != info.param_names.end()) {
-          refined.push_back(static_cast<int>(it - info.param_names.begin()));
-        } else if (Lower(name) == "pp" || Lower(name) == "cx,cy") {
-          refined.insert(refined.end(), info.principal_point_params.begin(),
-                         info.principal_point_params.end());
-        }
-        // A name the model lacks (e.g. k3 on a pinhole) is simply not refined.
-      }
-      break;
-  }
-  std::sort(refined.begin(), refined.end());
-  refined.erase(std::unique(refined.begin(), refined.end()), refined.end());
-  return refined;
-}
-
-// True when the prior positions span a plane (not a line or a point).
-bool PriorsFixDatum(const std::vector<Eigen::Vector3d>& positions) {
-  if (positions.size() < 3) return false;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& p : positions) mean += p;
-  mean /= static_cast<double>(positions.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const auto& p : positions) cov += (p - mean) * (p - mean).transpose();
-  cov /= static_cast<double>(positions.size());
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  const Eigen::Vector3d ev = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
-  // ev ascending: ev(1) is the spread across the main direction.
-  return ev(2) > 0.0 && ev(1) > 1e-2 * ev(2);
 }
 
 struct RoundResult {
@@ -248,54 +196,41 @@ void IntrinsicsCovariance(ceres::Problem* problem, SparseModel* model, const std
   }
 }
 
-// The datum of a model without enough priors: image A's pose (held fixed in
-// the solve) and the length of the baseline from A to the farthest image B.
-// Reprojection error is invariant under scale, so the solve leaves scale free
-// (LM damping handles that one-dimensional null space) and RestoreDatum()
-// rescales about A exactly; holding a baseline coordinate fixed through a
-// SubsetManifold instead costs Ceres its specialised Schur eliminator and,
-// on the BAL problems, about twice the iterations.
-struct Datum {
-  int a = -1;
-  int b = -1;
-  Pose pose_a;
-  double baseline = 0.0;
-};
-
-// Applies Y = s Q (X − C_A') + C_A to every adjusted centre and point so that
-// image A gets back its pose and |C_B − C_A| its length.
-void RestoreDatum(const Datum& datum, bool restore_rotation, bool restore_scale,
-                  const std::vector<char>& image_used, const std::vector<char>& point_used,
-                  SparseModel* model) {
-  if (datum.a < 0) return;
-  const Pose now = model->images[datum.a].pose;
-  const Eigen::Quaterniond q =
-      restore_rotation ? datum.pose_a.cam_from_world.conjugate() * now.cam_from_world
-                       : Eigen::Quaterniond::Identity();
+// The gauge of a model without enough priors (BundleGauge other than
+// kPriors): image A's pose before the solve and the length of the baseline
+// from A to the farthest image B. Reprojection error is invariant under
+// scale, so the solve leaves scale free (LM damping handles that
+// one-dimensional null space) and this rescales about A exactly; holding a
+// baseline coordinate fixed through a SubsetManifold instead costs Ceres its
+// specialised Schur eliminator and, on the BAL problems, about twice the
+// iterations. Applies Y = s Q (X − C_A') + C_A to every adjusted centre and
+// point so that image A gets back its pose (free network) and |C_B − C_A|
+// its length (BundleConfig::restore_scale).
+void RestoreGauge(const BundleConfig& config, const Pose& pose_a, SparseModel* model) {
+  if (config.image_a < 0) return;
+  const bool restore_rotation = config.gauge == BundleGauge::kFreeNetwork;
+  const Pose now = model->images[config.image_a].pose;
+  const Eigen::Quaterniond q = restore_rotation ? pose_a.cam_from_world.conjugate() * now.cam_from_world
+                                                : Eigen::Quaterniond::Identity();
   double s = 1.0;
-  if (restore_scale && datum.b >= 0) {
-    const double len =
-        (model->images[datum.b].pose.centre_in_world - now.centre_in_world).norm();
-    if (len > 0.0) s = datum.baseline / len;
+  if (config.restore_scale && config.image_b >= 0) {
+    const double len = (model->images[config.image_b].pose.centre_in_world - now.centre_in_world).norm();
+    if (len > 0.0) s = config.baseline_m / len;
   }
   const Eigen::Vector3d c_new = now.centre_in_world;
-  const Eigen::Vector3d c_old = restore_rotation ? datum.pose_a.centre_in_world : c_new;
-  auto map = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d {
-    return s * (q * (x - c_new)) + c_old;
-  };
+  const Eigen::Vector3d c_old = restore_rotation ? pose_a.centre_in_world : c_new;
+  auto map = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return s * (q * (x - c_new)) + c_old; };
   for (size_t i = 0; i < model->images.size(); ++i) {
-    if (!image_used[i]) continue;
+    if (!config.image_used[i]) continue;
     Pose& pose = model->images[i].pose;
     pose.centre_in_world = map(pose.centre_in_world);
     pose.cam_from_world = (pose.cam_from_world * q.conjugate()).normalized();
   }
   for (size_t p = 0; p < model->points.size(); ++p) {
-    if (point_used[p]) model->points[p].position = map(model->points[p].position);
+    if (config.point_used[p]) model->points[p].position = map(model->points[p].position);
   }
 }
 
-// gps_offset: the shared GPS offset block (BundleOptions::estimate_gps_offset),
-// in and out.
 // The posterior precision of a solved problem (BundleOptions::
 // compute_precision): the reduced camera system of bundle_precision.h over
 // the problem's varying blocks, plus the independent check points,
@@ -550,418 +485,323 @@ void FillCeresSummary(const DenseSchurSummary& s, ceres::Solver::Summary* out) {
   out->num_effective_parameters_reduced = s.num_parameters;
 }
 
-RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
-                      double* gps_offset, std::vector<Eigen::Vector3d>* gps_drift, bool precision_pass = false) {
-  const auto setup_start = Clock::now();
-  RoundResult result;
-  const auto per_point = model->ObservationsPerPoint();
-  const size_t num_images = model->images.size();
+// The parameter blocks of one solve that are not the model's own buffers:
+// rotations in Ceres' order (w, x, y, z), and the merged blocks
+// [q(4), C(3), intrinsics(N)] of BundleConfig::merged images.
+struct ProblemBlocks {
+  std::vector<std::array<double, 4>> rotations;
+  std::vector<std::vector<double>> merged;
+};
 
-  auto use_point = [&](int index) {
-    const Point& point = model->points[index];
-    if (point.role == PointRole::kCheck) return options.check_points_in_bundle && per_point[index] >= 2;
-    const bool anchored =
-        point.role == PointRole::kControl && point.prior && options.use_gcp_priors;
-    return per_point[index] >= 2 || (anchored && per_point[index] >= 1);
-  };
-
-  // Which images, camera groups and points take part.
-  std::vector<char> image_used(num_images, 0);
-  std::vector<char> camera_used(model->cameras.size(), 0);
-  std::vector<char> point_used(model->points.size(), 0);
-  for (const Observation& obs : model->observations) {
-    const Image& image = model->images[obs.image];
-    if (!image.registered || !use_point(obs.point)) continue;
-    image_used[obs.image] = 1;
-    camera_used[image.camera] = 1;
-    point_used[obs.point] = 1;
-    ++result.num_observations;
-  }
-  for (size_t p = 0; p < model->points.size(); ++p) {
-    result.num_points += point_used[p];
-    if (model->points[p].role == PointRole::kTie && per_point[p] == 1) ++result.skipped_points;
-  }
-
-  // Priors and the datum.
-  std::vector<Eigen::Vector3d> prior_positions;
-  for (size_t i = 0; i < num_images; ++i) {
-    if (options.use_gps_priors && image_used[i] && model->images[i].gps_prior) {
-      prior_positions.push_back(model->images[i].gps_prior->position);
-    }
-  }
-  for (size_t p = 0; p < model->points.size(); ++p) {
-    const Point& point = model->points[p];
-    if (options.use_gcp_priors && point_used[p] && point.role == PointRole::kControl &&
-        point.prior) {
-      prior_positions.push_back(point.prior->position);
-    }
-  }
-  const bool datum_from_priors = PriorsFixDatum(prior_positions);
-  Datum datum;
-  bool fix_rotation_of_a = false;
-  bool fix_centre_of_a = false;
-  bool free_gauge = false;
-  bool restore_scale = false;
-  auto images_of_camera_used = [&](int camera) {
-    int n = 0;
-    for (size_t i = 0; i < num_images; ++i) n += image_used[i] && model->images[i].camera == camera;
-    return n;
-  };
-  if (!datum_from_priors) {
-    for (size_t i = 0; i < num_images && datum.a < 0; ++i) {
-      if (image_used[i]) datum.a = static_cast<int>(i);
-    }
-    if (datum.a >= 0) {
-      datum.pose_a = model->images[datum.a].pose;
-      for (size_t i = 0; i < num_images; ++i) {
-        if (!image_used[i] || static_cast<int>(i) == datum.a) continue;
-        const double len =
-            (model->images[i].pose.centre_in_world - datum.pose_a.centre_in_world).norm();
-        if (len > datum.baseline) {
-          datum.baseline = len;
-          datum.b = static_cast<int>(i);
-        }
-      }
-    }
-    // Without priors, image A is held fixed and the scale (the one freedom
-    // left, to which reprojection is blind) is restored after the solve. When
-    // A has its own camera group (BAL), holding its blocks would cost Ceres
-    // its uniform camera blocks: A then moves freely too and its pose is
-    // restored exactly afterwards. With too few priors, A's rotation is held
-    // and the scale comes from the priors when they hold two distinct points.
-    const bool a_own_group =
-        datum.a >= 0 && images_of_camera_used(model->images[datum.a].camera) == 1;
-    free_gauge = prior_positions.empty() && a_own_group;
-    fix_rotation_of_a = !free_gauge;
-    fix_centre_of_a = prior_positions.empty() && !free_gauge;
-    bool distinct = false;
-    for (const auto& p : prior_positions) distinct |= (p - prior_positions[0]).norm() > 1e-6;
-    restore_scale = !distinct;
-  }
-
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  // Blocks are distinct buffers by construction and the model was validated.
-  problem_options.disable_all_safety_checks = true;
-  ceres::Problem problem(problem_options);
-  const double mark_sigma = options.mark_sigma_px > 0.0 ? options.mark_sigma_px : options.observation_sigma_px;
-  // One loss per image sigma (its scale is in pixels, the residual in sigmas).
-  std::map<double, std::unique_ptr<ceres::LossFunction>> losses;
-  auto loss_for = [&](double sigma) {
-    auto it = losses.find(sigma);
-    if (it == losses.end()) it = losses.emplace(sigma, MakeLoss(options, sigma)).first;
-    return it->second.get();
-  };
-  ceres::QuaternionManifold quaternion_manifold;
-  std::vector<std::unique_ptr<ceres::Manifold>> owned_manifolds;
-
-  // Per-camera-group refinement and the block layout of each image.
-  std::vector<std::vector<int>> refined(model->cameras.size());
-  std::vector<int> images_of_camera(model->cameras.size(), 0);
-  for (size_t i = 0; i < num_images; ++i) {
-    if (image_used[i]) ++images_of_camera[model->images[i].camera];
-  }
-  for (size_t c = 0; c < model->cameras.size(); ++c) {
-    refined[c] = RefinedParams(model->cameras[c], options);
-    if (images_of_camera[c] < options.min_images_to_refine_intrinsics && !refined[c].empty()) {
-      refined[c] = model->cameras[c].info().focal_params;
-    }
-    for (const auto& [camera, param] : options.held_params) {
-      if (camera == static_cast<int>(c)) refined[c].erase(std::remove(refined[c].begin(), refined[c].end(), param), refined[c].end());
-    }
-  }
-  auto constant_params = [&](int c) {
-    std::vector<int> constant;
-    for (int k = 0; k < model->cameras[c].info().num_params(); ++k) {
-      if (!std::binary_search(refined[c].begin(), refined[c].end(), k)) constant.push_back(k);
-    }
-    return constant;
-  };
-
-  // Rotations (Ceres order w, x, y, z), or whole merged camera blocks
-  // [q(4), C(3), intrinsics(N)] for images with a camera group of their own.
-  std::vector<std::array<double, 4>> rotations(num_images);
-  std::vector<std::vector<double>> merged(num_images);
-  for (size_t i = 0; i < num_images; ++i) {
-    if (!image_used[i]) continue;
-    const Image& image = model->images[i];
+ProblemBlocks MakeProblemBlocks(const SparseModel& model, const BundleConfig& config) {
+  ProblemBlocks blocks;
+  blocks.rotations.resize(model.images.size());
+  blocks.merged.resize(model.images.size());
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    if (!config.image_used[i]) continue;
+    const Image& image = model.images[i];
     const Eigen::Quaterniond q = image.pose.cam_from_world.normalized();
-    rotations[i] = {q.w(), q.x(), q.y(), q.z()};
-    const bool merge = images_of_camera[image.camera] == 1 && !refined[image.camera].empty() &&
-                       !(options.use_gps_priors && image.gps_prior) &&
-                       !(fix_rotation_of_a && static_cast<int>(i) == datum.a);
-    if (merge) {
-      const Camera& camera = model->cameras[image.camera];
-      merged[i] = {q.w(), q.x(), q.y(), q.z()};
-      for (int k = 0; k < 3; ++k) merged[i].push_back(image.pose.centre_in_world[k]);
-      merged[i].insert(merged[i].end(), camera.params.begin(), camera.params.end());
+    blocks.rotations[i] = {q.w(), q.x(), q.y(), q.z()};
+    if (config.merged[i]) {
+      const Camera& camera = model.cameras[image.camera];
+      std::vector<double>& m = blocks.merged[i];
+      m = {q.w(), q.x(), q.y(), q.z()};
+      for (int k = 0; k < 3; ++k) m.push_back(image.pose.centre_in_world[k]);
+      m.insert(m.end(), camera.params.begin(), camera.params.end());
+    }
+  }
+  return blocks;
+}
+
+// The solved blocks back into the model, and the gauge restored.
+void WriteBack(const ProblemBlocks& blocks, const BundleConfig& config, const Pose& pose_a, SparseModel* model) {
+  for (size_t i = 0; i < model->images.size(); ++i) {
+    if (!config.image_used[i]) continue;
+    Image& image = model->images[i];
+    const bool merged = !blocks.merged[i].empty();
+    const double* q = merged ? blocks.merged[i].data() : blocks.rotations[i].data();
+    image.pose.cam_from_world = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+    if (merged) {
+      for (int k = 0; k < 3; ++k) image.pose.centre_in_world[k] = blocks.merged[i][4 + k];
+      Camera& camera = model->cameras[image.camera];
+      std::copy(blocks.merged[i].begin() + 7, blocks.merged[i].end(), camera.params.begin());
+    }
+  }
+  if (config.gauge != BundleGauge::kPriors) RestoreGauge(config, pose_a, model);
+}
+
+// One Ceres problem built from a BundleConfig: each kind of residual and
+// constraint added by its own method, in the order SolveOnce calls them.
+class CeresBundleProblem {
+ public:
+  CeresBundleProblem(SparseModel* model, const BundleOptions& options, const BundleConfig& config,
+                     ProblemBlocks* blocks, RoundResult* result)
+      : model_(model), options_(options), config_(config), blocks_(blocks), result_(result),
+        problem_(ProblemOptions()) {
+    mark_sigma_ = options.mark_sigma_px > 0.0 ? options.mark_sigma_px : options.observation_sigma_px;
+  }
+
+  ceres::Problem& problem() { return problem_; }
+  double mark_sigma() const { return mark_sigma_; }
+  const std::vector<std::pair<ceres::ResidualBlockId, int>>& mark_blocks() const { return mark_blocks_; }
+
+  // One loss per image sigma (its scale is in pixels, the residual in sigmas).
+  ceres::LossFunction* LossFor(double sigma) {
+    auto it = losses_.find(sigma);
+    if (it == losses_.end()) it = losses_.emplace(sigma, MakeLoss(options_, sigma)).first;
+    return it->second.get();
+  }
+
+  // Reprojection of every observation of a used point in a used image;
+  // target marks (control and check points) have their own image sigma, and
+  // any measurement may state its own.
+  void AddReprojections() {
+    for (size_t k = 0; k < model_->observations.size(); ++k) {
+      const Observation& obs = model_->observations[k];
+      if (!config_.image_used[obs.image] || !config_.point_used[obs.point]) continue;
+      Image& image = model_->images[obs.image];
+      Camera& camera = model_->cameras[image.camera];
+      double* point = model_->points[obs.point].position.data();
+      const bool is_merged = config_.merged[obs.image];
+      const bool is_mark = model_->points[obs.point].role != PointRole::kTie;
+      const double sigma =
+          obs.sigma_px > 0.0 ? obs.sigma_px : is_mark ? mark_sigma_ : options_.observation_sigma_px;
+      ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
+        using Model = decltype(m);
+        if (is_merged) return new ReprojectionCostMergedCamera<Model>(obs.xy, sigma);
+        return new ReprojectionCost<Model>(obs.xy, sigma);
+      });
+      const ceres::ResidualBlockId id =
+          is_merged ? problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->merged[obs.image].data(), point)
+                    : problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->rotations[obs.image].data(),
+                                                image.pose.centre_in_world.data(), point, camera.params.data());
+      if (is_mark) mark_blocks_.emplace_back(id, static_cast<int>(k));
     }
   }
 
-  auto describe_gauge = [&]() {
-    std::ostringstream gauge;
-    if (datum_from_priors) {
-      gauge << "datum from priors (" << result.num_gps << " GPS, " << result.num_gcp
-            << " GCP); no parameter held fixed";
-      if (result.offset_estimated) gauge << "; GPS offset estimated, translation from the GCPs";
-    } else if (datum.a >= 0) {
-      const std::string a = model->images[datum.a].name;
-      const std::string b = datum.b >= 0 ? model->images[datum.b].name : "";
-      if (prior_positions.empty()) {
-        gauge << "no priors: pose of image '" << a << "' held"
-              << (free_gauge ? " (restored exactly after a free-network solve)" : " fixed")
-              << "; scale held by the baseline '" << a << "'-'" << b
-              << "' (restored exactly after the solve, reprojection being blind to scale)";
-      } else {
-        gauge << "priors too few or collinear (" << prior_positions.size()
-              << "): rotation of image '" << a << "' held fixed";
-        if (restore_scale) gauge << ", baseline '" << a << "'-'" << b << "' holds the scale";
-      }
-    }
-    return gauge.str();
-  };
-
-  // The solved blocks back into the model, and the datum restored.
-  auto write_back = [&]() {
-    for (size_t i = 0; i < num_images; ++i) {
-      if (!image_used[i]) continue;
-      Image& image = model->images[i];
-      const double* q = merged[i].empty() ? rotations[i].data() : merged[i].data();
-      image.pose.cam_from_world = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
-      if (!merged[i].empty()) {
-        for (int k = 0; k < 3; ++k) image.pose.centre_in_world[k] = merged[i][4 + k];
-        Camera& camera = model->cameras[image.camera];
-        std::copy(merged[i].begin() + 7, merged[i].end(), camera.params.begin());
-      }
-    }
-    if (!datum_from_priors) {
-      RestoreDatum(datum, /*restore_rotation=*/free_gauge, restore_scale, image_used, point_used, model);
-    }
-  };
-
-  // aerotri's own dense-Schur solver where it applies (BundleOptions::engine).
-  if (!precision_pass) {
-    std::string why_not;
-    DenseSchurProblem schur;
-    if (MakeDenseSchurProblem(model, options, image_used, point_used, refined, prior_positions.empty() && free_gauge,
-                              &merged, &schur, &why_not)) {
-      DenseSchurOptions so;
-      so.max_iterations = options.max_iterations;
-      so.function_tolerance = options.function_tolerance;
-      so.gradient_tolerance = options.gradient_tolerance;
-      so.parameter_tolerance = options.parameter_tolerance;
-      so.optimality_gap = options.optimality_gap;
-      so.max_time_s = options.max_time_s;
-      so.num_threads = options.num_threads;
-      if (options.iteration_callback) {
-        so.iteration_callback = [&](int iteration, double cost, double time_s) {
-          options.iteration_callback(IterationReport{iteration, cost, time_s, round});
-        };
-      }
-      result.setup_s = SecondsSince(setup_start);
-      const DenseSchurSummary summary = SolveDenseSchur(schur, so);
-      result.solver = "aerotri_dense_schur";
-      result.num_images = static_cast<int>(std::count(image_used.begin(), image_used.end(), 1));
-      result.gauge = describe_gauge();
-      FillCeresSummary(summary, &result.ceres);
-      if (options.keep_solver_report) result.report = summary.Report();
-      if (options.compute_intrinsics_covariance) {
-        result.covariance_note = "not computed: images with a camera group of their own";
-      }
-      write_back();
-      return result;
-    }
-    if (options.engine == BundleEngine::kAerotri) {
-      throw InvalidArgument("bundle adjustment: the aerotri engine does not apply: " + why_not);
-    }
-  }
-
-  // Target marks' residual blocks, with their observation index.
-  std::vector<std::pair<ceres::ResidualBlockId, int>> mark_blocks;
-  for (size_t k = 0; k < model->observations.size(); ++k) {
-    const Observation& obs = model->observations[k];
-    Image& image = model->images[obs.image];
-    if (!image_used[obs.image] || !point_used[obs.point]) continue;
-    Camera& camera = model->cameras[image.camera];
-    double* point = model->points[obs.point].position.data();
-    const bool is_merged = !merged[obs.image].empty();
-    // Target marks (control and check points) have their own image sigma,
-    // and any measurement may state its own.
-    const bool is_mark = model->points[obs.point].role != PointRole::kTie;
-    const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px : is_mark ? mark_sigma : options.observation_sigma_px;
-    ceres::LossFunction* obs_loss = loss_for(sigma);
-    ceres::CostFunction* cost =
-        VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
-          using Model = decltype(m);
-          if (is_merged) {
-            return new ReprojectionCostMergedCamera<Model>(obs.xy, sigma);
-          }
-          return new ReprojectionCost<Model>(obs.xy, sigma);
-        });
-    ceres::ResidualBlockId id;
-    if (is_merged) {
-      id = problem.AddResidualBlock(cost, obs_loss, merged[obs.image].data(), point);
-    } else {
-      id = problem.AddResidualBlock(cost, obs_loss, rotations[obs.image].data(),
-                                    image.pose.centre_in_world.data(), point, camera.params.data());
-    }
-    if (is_mark) mark_blocks.emplace_back(id, static_cast<int>(k));
-  }
-
-  // GPS priors, through the shared offset block when it is estimated. Without
-  // a control prior the offset and the block's translation are one freedom:
-  // the offset then stays where it is.
-  int num_control_priors = 0;
-  for (size_t p = 0; p < model->points.size(); ++p) {
-    const Point& point = model->points[p];
-    num_control_priors += options.use_gcp_priors && point_used[p] &&
-                          point.role == PointRole::kControl && point.prior.has_value();
-  }
-  if (options.use_gps_priors) {
+  // GPS priors, through the shared offset block when it is estimated and the
+  // flight's drift rate when drift is. Without a control prior the offset
+  // and the block's translation are one freedom: the offset then stays where
+  // it is.
+  void AddGpsPriors(double* gps_offset, std::vector<Eigen::Vector3d>* gps_drift) {
+    if (!options_.use_gps_priors) return;
     std::set<int> drifting_flights;
-    for (size_t i = 0; i < num_images; ++i) {
-      Image& image = model->images[i];
-      if (!image_used[i] || !image.gps_prior) continue;
+    const bool lever_arm = !options_.gnss_lever_arm_m.isZero();
+    for (size_t i = 0; i < model_->images.size(); ++i) {
+      Image& image = model_->images[i];
+      if (!config_.image_used[i] || !image.gps_prior) continue;
       const PositionPrior& p = *image.gps_prior;
-      const bool drift = options.estimate_gps_drift && p.flight >= 0 &&
-                         p.flight < static_cast<int>(gps_drift->size());
+      double* centre = image.pose.centre_in_world.data();
+      double* rotation = blocks_->rotations[i].data();
+      const bool drift =
+          options_.estimate_gps_drift && p.flight >= 0 && p.flight < static_cast<int>(gps_drift->size());
       if (drift) {
-        // Offset block always present (held below unless estimated).
+        // The offset block is always present (held below unless estimated).
         double* rate = (*gps_drift)[p.flight].data();
-        if (!options.gnss_lever_arm_m.isZero()) {
-          problem.AddResidualBlock(MakeDriftLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
-                                                              options.gnss_lever_arm_m, p.time_from_flight_s),
-                                   nullptr, rotations[i].data(), image.pose.centre_in_world.data(), gps_offset, rate);
+        if (lever_arm) {
+          problem_.AddResidualBlock(MakeDriftLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
+                                                               options_.gnss_lever_arm_m, p.time_from_flight_s),
+                                    nullptr, rotation, centre, gps_offset, rate);
         } else {
-          problem.AddResidualBlock(
+          problem_.AddResidualBlock(
               new DriftPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m, p.time_from_flight_s), nullptr,
-              image.pose.centre_in_world.data(), gps_offset, rate);
+              centre, gps_offset, rate);
         }
         drifting_flights.insert(p.flight);
-      } else if (!options.gnss_lever_arm_m.isZero()) {
+      } else if (lever_arm) {
         ceres::CostFunction* cost = MakeLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
-                                                          options.gnss_lever_arm_m, options.estimate_gps_offset);
-        if (options.estimate_gps_offset) {
-          problem.AddResidualBlock(cost, nullptr, rotations[i].data(), image.pose.centre_in_world.data(), gps_offset);
+                                                          options_.gnss_lever_arm_m, options_.estimate_gps_offset);
+        if (options_.estimate_gps_offset) {
+          problem_.AddResidualBlock(cost, nullptr, rotation, centre, gps_offset);
         } else {
-          problem.AddResidualBlock(cost, nullptr, rotations[i].data(), image.pose.centre_in_world.data());
+          problem_.AddResidualBlock(cost, nullptr, rotation, centre);
         }
-      } else if (options.estimate_gps_offset) {
-        problem.AddResidualBlock(new OffsetPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr,
-                                 image.pose.centre_in_world.data(), gps_offset);
+      } else if (options_.estimate_gps_offset) {
+        problem_.AddResidualBlock(new OffsetPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr,
+                                  centre, gps_offset);
       } else {
-        problem.AddResidualBlock(new PositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr,
-                                 image.pose.centre_in_world.data());
+        problem_.AddResidualBlock(new PositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr, centre);
       }
-      ++result.num_gps;
+      ++result_->num_gps;
     }
-    if (problem.HasParameterBlock(gps_offset)) {
-      if (options.estimate_gps_offset && num_control_priors > 0) {
-        result.offset_estimated = true;
+    if (problem_.HasParameterBlock(gps_offset)) {
+      if (options_.estimate_gps_offset && NumControlPriors() > 0) {
+        result_->offset_estimated = true;
       } else {
-        problem.SetParameterBlockConstant(gps_offset);
+        problem_.SetParameterBlockConstant(gps_offset);
       }
     }
     // Each drifting flight's rate varies on the chosen axes only.
     std::vector<int> held_axes;
     for (int a = 0; a < 3; ++a) {
-      if (!options.gps_drift_axes[a]) held_axes.push_back(a);
+      if (!options_.gps_drift_axes[a]) held_axes.push_back(a);
     }
     for (int f : drifting_flights) {
       double* rate = (*gps_drift)[f].data();
       if (held_axes.size() == 3) {
-        problem.SetParameterBlockConstant(rate);
-      } else {
-        if (!held_axes.empty()) {
-          owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(3, held_axes));
-          problem.SetManifold(rate, owned_manifolds.back().get());
-        }
-        result.drift_estimated = true;
+        problem_.SetParameterBlockConstant(rate);
+        continue;
       }
+      if (!held_axes.empty()) {
+        owned_manifolds_.push_back(std::make_unique<ceres::SubsetManifold>(3, held_axes));
+        problem_.SetManifold(rate, owned_manifolds_.back().get());
+      }
+      result_->drift_estimated = true;
     }
   }
+
   // The nadir attitude prior: every adjusted image's optical axis down.
-  if (options.nadir_prior_sigma_deg > 0.0) {
-    const double inv_sigma = 1.0 / (options.nadir_prior_sigma_deg * M_PI / 180.0);
-    for (size_t i = 0; i < num_images; ++i) {
-      if (!image_used[i] || !merged[i].empty()) continue;
-      problem.AddResidualBlock(
+  void AddNadirPriors() {
+    if (!(options_.nadir_prior_sigma_deg > 0.0)) return;
+    const double inv_sigma = 1.0 / (options_.nadir_prior_sigma_deg * M_PI / 180.0);
+    for (size_t i = 0; i < model_->images.size(); ++i) {
+      if (!config_.image_used[i] || config_.merged[i]) continue;
+      problem_.AddResidualBlock(
           new ceres::AutoDiffCostFunction<NadirAttitudePrior, 2, 4>(new NadirAttitudePrior{inv_sigma}), nullptr,
-          rotations[i].data());
-      ++result.num_nadir;
+          blocks_->rotations[i].data());
+      ++result_->num_nadir;
     }
   }
-  for (size_t c = 0; c < model->cameras.size() && c < options.focal_prior_px.size(); ++c) {
-    Camera& camera = model->cameras[c];
-    const double f0 = options.focal_prior_px[c];
-    if (!(f0 > 0) || !camera_used[c] || !problem.HasParameterBlock(camera.params.data())) continue;
-    const int index = camera.info().focal_params.at(0);
-    problem.AddResidualBlock(
-        new ParameterPriorCost(camera.info().num_params(), index, f0, options.focal_prior_sigma_rel * f0),
-        nullptr, camera.params.data());
-  }
-  for (const BundleOptions::IntrinsicPrior& prior : options.intrinsics_priors) {
-    if (prior.camera < 0 || prior.camera >= static_cast<int>(model->cameras.size())) continue;
-    Camera& camera = model->cameras[prior.camera];
-    if (!camera_used[prior.camera] || !std::binary_search(refined[prior.camera].begin(), refined[prior.camera].end(),
-                                                          prior.param)) {
-      continue;  // held or not adjusted: a prior has nothing to weigh
+
+  // Focal-length priors from EXIF and a calibration certificate's priors on
+  // single parameters (only on parameters that vary).
+  void AddIntrinsicsPriors() {
+    for (size_t c = 0; c < model_->cameras.size() && c < options_.focal_prior_px.size(); ++c) {
+      Camera& camera = model_->cameras[c];
+      const double f0 = options_.focal_prior_px[c];
+      if (!(f0 > 0) || !config_.camera_used[c] || !problem_.HasParameterBlock(camera.params.data())) continue;
+      const int index = camera.info().focal_params.at(0);
+      problem_.AddResidualBlock(
+          new ParameterPriorCost(camera.info().num_params(), index, f0, options_.focal_prior_sigma_rel * f0), nullptr,
+          camera.params.data());
     }
-    problem.AddResidualBlock(new ParameterPriorCost(camera.info().num_params(), prior.param, prior.value, prior.sigma),
-                             nullptr, camera.params.data());
+    for (const BundleOptions::IntrinsicPrior& prior : options_.intrinsics_priors) {
+      if (prior.camera < 0 || prior.camera >= static_cast<int>(model_->cameras.size())) continue;
+      const std::vector<int>& refined = config_.refined[prior.camera];
+      if (!config_.camera_used[prior.camera] || !std::binary_search(refined.begin(), refined.end(), prior.param)) {
+        continue;  // held or not adjusted: a prior has nothing to weigh
+      }
+      Camera& camera = model_->cameras[prior.camera];
+      problem_.AddResidualBlock(
+          new ParameterPriorCost(camera.info().num_params(), prior.param, prior.value, prior.sigma), nullptr,
+          camera.params.data());
+    }
   }
-  if (options.use_gcp_priors) {
-    for (size_t p = 0; p < model->points.size(); ++p) {
-      Point& point = model->points[p];
-      if (!point_used[p] || point.role != PointRole::kControl || !point.prior) continue;
+
+  // Surveyed positions of control points (full covariance when given).
+  void AddControlPriors() {
+    if (!options_.use_gcp_priors) return;
+    for (size_t p = 0; p < model_->points.size(); ++p) {
+      Point& point = model_->points[p];
+      if (!config_.point_used[p] || point.role != PointRole::kControl || !point.prior) continue;
       const PositionPrior& prior = *point.prior;
-      problem.AddResidualBlock(prior.covariance ? new PositionPriorCost(prior.position, *prior.covariance)
-                                                : new PositionPriorCost(prior.position, prior.sigma_h_m,
-                                                                        prior.sigma_v_m),
-                               nullptr, point.position.data());
-      ++result.num_gcp;
+      problem_.AddResidualBlock(prior.covariance
+                                    ? new PositionPriorCost(prior.position, *prior.covariance)
+                                    : new PositionPriorCost(prior.position, prior.sigma_h_m, prior.sigma_v_m),
+                                nullptr, point.position.data());
+      ++result_->num_gcp;
     }
   }
 
-  // Manifolds and constant blocks.
-  for (size_t i = 0; i < num_images; ++i) {
-    if (!image_used[i]) continue;
-    ++result.num_images;
-    const int c = model->images[i].camera;
-    if (!merged[i].empty()) {
-      const std::vector<int> constant = constant_params(c);
-      owned_manifolds.push_back(
-          std::make_unique<ceres::ProductManifold<ceres::QuaternionManifold,
-                                                  ceres::EuclideanManifold<3>,
-                                                  ceres::SubsetManifold>>(
-              ceres::QuaternionManifold{}, ceres::EuclideanManifold<3>{},
-              ceres::SubsetManifold(model->cameras[c].info().num_params(), constant)));
-      problem.SetManifold(merged[i].data(), owned_manifolds.back().get());
-    } else {
-      problem.SetManifold(rotations[i].data(), &quaternion_manifold);
-      if (fix_rotation_of_a && static_cast<int>(i) == datum.a) {
-        problem.SetParameterBlockConstant(rotations[i].data());
+  // Manifolds (quaternions, merged blocks, intrinsics held in part) and the
+  // blocks the gauge holds.
+  void SetManifoldsAndHeldBlocks() {
+    for (size_t i = 0; i < model_->images.size(); ++i) {
+      if (!config_.image_used[i]) continue;
+      const int c = model_->images[i].camera;
+      if (config_.merged[i]) {
+        owned_manifolds_.push_back(
+            std::make_unique<ceres::ProductManifold<ceres::QuaternionManifold, ceres::EuclideanManifold<3>,
+                                                    ceres::SubsetManifold>>(
+                ceres::QuaternionManifold{}, ceres::EuclideanManifold<3>{},
+                ceres::SubsetManifold(model_->cameras[c].info().num_params(), config_.ConstantParams(*model_, c))));
+        problem_.SetManifold(blocks_->merged[i].data(), owned_manifolds_.back().get());
+        continue;
       }
-      if (fix_centre_of_a && static_cast<int>(i) == datum.a) {
-        problem.SetParameterBlockConstant(model->images[i].pose.centre_in_world.data());
+      problem_.SetManifold(blocks_->rotations[i].data(), &quaternion_manifold_);
+      if (config_.HoldsRotationOf(static_cast<int>(i))) {
+        problem_.SetParameterBlockConstant(blocks_->rotations[i].data());
+      }
+      if (config_.HoldsCentreOf(static_cast<int>(i))) {
+        problem_.SetParameterBlockConstant(model_->images[i].pose.centre_in_world.data());
+      }
+    }
+    for (size_t c = 0; c < model_->cameras.size(); ++c) {
+      Camera& camera = model_->cameras[c];
+      if (!config_.camera_used[c] || !problem_.HasParameterBlock(camera.params.data())) continue;
+      const int n = camera.info().num_params();
+      if (config_.refined[c].empty()) {
+        problem_.SetParameterBlockConstant(camera.params.data());
+      } else if (static_cast<int>(config_.refined[c].size()) < n) {
+        owned_manifolds_.push_back(std::make_unique<ceres::SubsetManifold>(n, config_.ConstantParams(*model_, c)));
+        problem_.SetManifold(camera.params.data(), owned_manifolds_.back().get());
       }
     }
   }
-  for (size_t c = 0; c < model->cameras.size(); ++c) {
-    Camera& camera = model->cameras[c];
-    if (!camera_used[c] || !problem.HasParameterBlock(camera.params.data())) continue;
-    const int n = camera.info().num_params();
-    if (refined[c].empty()) {
-      problem.SetParameterBlockConstant(camera.params.data());
-    } else if (static_cast<int>(refined[c].size()) < n) {
-      owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(n, constant_params(c)));
-      problem.SetManifold(camera.params.data(), owned_manifolds.back().get());
+
+  // Schur elimination order: points first, then everything else.
+  std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(double* gps_offset,
+                                                               std::vector<Eigen::Vector3d>* gps_drift) {
+    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+    for (size_t p = 0; p < model_->points.size(); ++p) {
+      if (config_.point_used[p]) ordering->AddElementToGroup(model_->points[p].position.data(), 0);
     }
+    for (size_t i = 0; i < model_->images.size(); ++i) {
+      if (!config_.image_used[i]) continue;
+      if (config_.merged[i]) {
+        ordering->AddElementToGroup(blocks_->merged[i].data(), 1);
+      } else {
+        ordering->AddElementToGroup(blocks_->rotations[i].data(), 1);
+        ordering->AddElementToGroup(model_->images[i].pose.centre_in_world.data(), 1);
+      }
+    }
+    for (size_t c = 0; c < model_->cameras.size(); ++c) {
+      if (config_.camera_used[c] && problem_.HasParameterBlock(model_->cameras[c].params.data())) {
+        ordering->AddElementToGroup(model_->cameras[c].params.data(), 1);
+      }
+    }
+    if (problem_.HasParameterBlock(gps_offset)) ordering->AddElementToGroup(gps_offset, 1);
+    for (Eigen::Vector3d& d : *gps_drift) {
+      if (problem_.HasParameterBlock(d.data())) ordering->AddElementToGroup(d.data(), 1);
+    }
+    return ordering;
   }
 
-  result.gauge = describe_gauge();
+ private:
+  static ceres::Problem::Options ProblemOptions() {
+    ceres::Problem::Options o;
+    o.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    o.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    // Blocks are distinct buffers by construction and the model was validated.
+    o.disable_all_safety_checks = true;
+    return o;
+  }
 
+  int NumControlPriors() const {
+    int n = 0;
+    for (size_t p = 0; p < model_->points.size(); ++p) {
+      const Point& point = model_->points[p];
+      n += options_.use_gcp_priors && config_.point_used[p] && point.role == PointRole::kControl &&
+           point.prior.has_value();
+    }
+    return n;
+  }
+
+  SparseModel* model_;
+  const BundleOptions& options_;
+  const BundleConfig& config_;
+  ProblemBlocks* blocks_;
+  RoundResult* result_;
+  // Owned here, outliving the problem (declared before it).
+  std::map<double, std::unique_ptr<ceres::LossFunction>> losses_;
+  ceres::QuaternionManifold quaternion_manifold_;
+  std::vector<std::unique_ptr<ceres::Manifold>> owned_manifolds_;
+  ceres::Problem problem_;
+  double mark_sigma_ = 1.0;
+  std::vector<std::pair<ceres::ResidualBlockId, int>> mark_blocks_;
+};
+
+ceres::Solver::Options SolverOptions(const BundleOptions& options, int num_images, std::string* solver_name) {
   ceres::Solver::Options solver_options;
   solver_options.minimizer_type = ceres::TRUST_REGION;
   solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
@@ -970,16 +810,15 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   solver_options.gradient_tolerance = options.gradient_tolerance;
   solver_options.parameter_tolerance = options.parameter_tolerance;
   if (options.max_time_s > 0.0) solver_options.max_solver_time_in_seconds = options.max_time_s;
-  solver_options.num_threads = options.num_threads > 0
-                                   ? options.num_threads
-                                   : std::max(1u, std::thread::hardware_concurrency());
+  solver_options.num_threads =
+      options.num_threads > 0 ? options.num_threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   solver_options.logging_type = ceres::SILENT;
 
   LinearSolverChoice solver = options.linear_solver;
   if (solver == LinearSolverChoice::kAuto) {
-    solver = result.num_images <= 250    ? LinearSolverChoice::kDenseSchur
-             : result.num_images <= 3000 ? LinearSolverChoice::kSparseSchur
-                                         : LinearSolverChoice::kIterativeSchur;
+    solver = num_images <= 250    ? LinearSolverChoice::kDenseSchur
+             : num_images <= 3000 ? LinearSolverChoice::kSparseSchur
+                                  : LinearSolverChoice::kIterativeSchur;
   }
   switch (solver) {
     case LinearSolverChoice::kAuto:
@@ -995,33 +834,83 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       solver_options.use_explicit_schur_complement = true;
       break;
   }
-  result.solver = ToString(solver);
+  *solver_name = ToString(solver);
+  return solver_options;
+}
 
-  // Schur elimination order: points first, then everything else.
-  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-  for (size_t p = 0; p < model->points.size(); ++p) {
-    if (point_used[p]) ordering->AddElementToGroup(model->points[p].position.data(), 0);
+// aerotri's own dense-Schur solver, when the configuration allows it
+// (BundleOptions::engine); false (with *why_not) when it does not.
+bool SolveWithDenseSchur(SparseModel* model, const BundleOptions& options, const BundleConfig& config, int round,
+                         ProblemBlocks* blocks, RoundResult* result, std::string* why_not) {
+  DenseSchurProblem schur;
+  if (!MakeDenseSchurProblem(model, options, config.image_used, config.point_used, config.refined,
+                             config.gauge == BundleGauge::kFreeNetwork, &blocks->merged, &schur, why_not)) {
+    return false;
   }
-  for (size_t i = 0; i < num_images; ++i) {
-    if (!image_used[i]) continue;
-    if (!merged[i].empty()) {
-      ordering->AddElementToGroup(merged[i].data(), 1);
-    } else {
-      ordering->AddElementToGroup(rotations[i].data(), 1);
-      ordering->AddElementToGroup(model->images[i].pose.centre_in_world.data(), 1);
+  DenseSchurOptions so;
+  so.max_iterations = options.max_iterations;
+  so.function_tolerance = options.function_tolerance;
+  so.gradient_tolerance = options.gradient_tolerance;
+  so.parameter_tolerance = options.parameter_tolerance;
+  so.optimality_gap = options.optimality_gap;
+  so.max_time_s = options.max_time_s;
+  so.num_threads = options.num_threads;
+  if (options.iteration_callback) {
+    so.iteration_callback = [&](int iteration, double cost, double time_s) {
+      options.iteration_callback(IterationReport{iteration, cost, time_s, round});
+    };
+  }
+  const DenseSchurSummary summary = SolveDenseSchur(schur, so);
+  result->solver = "aerotri_dense_schur";
+  FillCeresSummary(summary, &result->ceres);
+  if (options.keep_solver_report) result->report = summary.Report();
+  if (options.compute_intrinsics_covariance) {
+    result->covariance_note = "not computed: images with a camera group of their own";
+  }
+  return true;
+}
+
+// One solve (or, with precision_pass, the posterior precision of the
+// current state): configure, build, solve, write back. gps_offset and
+// gps_drift are the shared GPS offset and the per-flight drift rates, in and
+// out.
+RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round, double* gps_offset,
+                      std::vector<Eigen::Vector3d>* gps_drift, bool precision_pass = false) {
+  const auto setup_start = Clock::now();
+  RoundResult result;
+  const BundleConfig config = ConfigureBundle(*model, options);
+  result.num_observations = config.num_observations;
+  result.num_points = config.num_points;
+  result.skipped_points = config.skipped_points;
+  result.num_images = config.num_images;
+  const Pose pose_a = config.image_a >= 0 ? model->images[config.image_a].pose : Pose();
+  ProblemBlocks blocks = MakeProblemBlocks(*model, config);
+
+  if (!precision_pass) {
+    std::string why_not;
+    result.setup_s = SecondsSince(setup_start);
+    if (SolveWithDenseSchur(model, options, config, round, &blocks, &result, &why_not)) {
+      result.gauge = config.Describe(*model, result.num_gps, result.num_gcp, result.offset_estimated);
+      WriteBack(blocks, config, pose_a, model);
+      return result;
+    }
+    if (options.engine == BundleEngine::kAerotri) {
+      throw InvalidArgument("bundle adjustment: the aerotri engine does not apply: " + why_not);
     }
   }
-  for (size_t c = 0; c < model->cameras.size(); ++c) {
-    if (camera_used[c] && problem.HasParameterBlock(model->cameras[c].params.data())) {
-      ordering->AddElementToGroup(model->cameras[c].params.data(), 1);
-    }
-  }
-  if (problem.HasParameterBlock(gps_offset)) ordering->AddElementToGroup(gps_offset, 1);
-  for (Eigen::Vector3d& d : *gps_drift) {
-    if (problem.HasParameterBlock(d.data())) ordering->AddElementToGroup(d.data(), 1);
-  }
-  if (result.num_points > 0) solver_options.linear_solver_ordering = ordering;
 
+  CeresBundleProblem bundle(model, options, config, &blocks, &result);
+  bundle.AddReprojections();
+  bundle.AddGpsPriors(gps_offset, gps_drift);
+  bundle.AddNadirPriors();
+  bundle.AddIntrinsicsPriors();
+  bundle.AddControlPriors();
+  bundle.SetManifoldsAndHeldBlocks();
+  result.gauge = config.Describe(*model, result.num_gps, result.num_gcp, result.offset_estimated);
+  ceres::Problem& problem = bundle.problem();
+
+  ceres::Solver::Options solver_options = SolverOptions(options, config.num_images, &result.solver);
+  if (result.num_points > 0) solver_options.linear_solver_ordering = bundle.SchurOrdering(gps_offset, gps_drift);
   std::unique_ptr<IterationForwarder> forwarder;
   if (options.iteration_callback || options.optimality_gap > 0.0) {
     forwarder = std::make_unique<IterationForwarder>(options.iteration_callback, round, options.optimality_gap);
@@ -1030,29 +919,28 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   result.setup_s = SecondsSince(setup_start);
 
   if (precision_pass) {
-    const bool any_merged = std::any_of(merged.begin(), merged.end(), [](const auto& m) { return !m.empty(); });
-    if (any_merged) {
+    if (config.AnyMerged()) {
       result.posterior.note = "not computed: images with a camera group of their own";
-    } else if (!datum_from_priors && prior_positions.empty()) {
+    } else if (config.gauge == BundleGauge::kFixedImage || config.gauge == BundleGauge::kFreeNetwork) {
       result.posterior.note = "not computed: no priors hold the datum (a fixed image and baseline do; the "
                               "precision would be relative to them)";
     } else {
-      result.posterior = PosteriorPrecision(&problem, model, image_used, point_used, rotations, mark_blocks,
-                                            loss_for, mark_sigma, options, gps_offset, gps_drift);
+      result.posterior = PosteriorPrecision(
+          &problem, model, config.image_used, config.point_used, blocks.rotations, bundle.mark_blocks(),
+          [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offset, gps_drift);
     }
   } else if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
     if (options.compute_intrinsics_covariance) {
-      const bool any_merged = std::any_of(merged.begin(), merged.end(), [](const auto& m) { return !m.empty(); });
-      if (any_merged) {
+      if (config.AnyMerged()) {
         result.covariance_note = "not computed: images with a camera group of their own";
       } else {
-        IntrinsicsCovariance(&problem, model, image_used, refined, options, &result);
+        IntrinsicsCovariance(&problem, model, config.image_used, config.refined, options, &result);
       }
     }
   }
 
-  write_back();
+  WriteBack(blocks, config, pose_a, model);
   return result;
 }
 

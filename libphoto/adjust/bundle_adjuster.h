@@ -8,13 +8,20 @@
 // ceres::QuaternionManifold) and its centre; per camera group its intrinsics
 // (refined as BundleOptions says); per tie / control point its position.
 // Residuals: reprojection (analytic Jacobians, optional robust loss whose
-// scale is in pixels), GPS priors on camera centres, surveyed priors on
-// control points. Check points never enter the adjustment.
+// scale is in pixels), GPS priors on camera centres (with an optional shared
+// offset, per-flight drift and lever arm), surveyed priors on control points,
+// optional attitude and intrinsics priors. Check points enter only as free
+// points (BundleOptions::check_points_in_bundle); by default they are
+// triangulated afterwards with the cameras held.
 //
-// Gauge: with three or more non-collinear priors the datum comes from them
-// and no parameter is held fixed. Otherwise one image's pose and one
-// coordinate of the longest baseline from it are held fixed (7 degrees of
-// freedom: position, orientation, scale); BundleSummary::gauge says which.
+// Each solve is first configured as data (bundle_config.h: which images,
+// points and intrinsics take part and vary, which blocks are merged, and the
+// gauge), then built and solved. Gauge: with three or more non-collinear
+// priors the datum comes from them and no parameter is held fixed. Without
+// priors one image's pose is held (or, for a free network, restored exactly
+// afterwards) and the scale of the longest baseline from it is restored
+// after the solve; with too few priors that image's rotation is held.
+// BundleSummary::gauge says which.
 //
 // Costs follow Ceres: ½Σ‖r‖² over all (robustified) residuals; with no priors,
 // no loss and sigma 1 px this is the BAL literature's cost in px².
