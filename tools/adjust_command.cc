@@ -8,12 +8,11 @@
 #include <memory>
 
 #include "georef/gcp_file.h"
-#include "libphoto/adjust/camera_file.h"
 #include "libphoto/adjust/georeferencing.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/directory_lock.h"
 #include "libphoto/base/error.h"
-#include "libphoto/pipeline/pipeline.h"
+#include "libphoto/pipeline/survey_adjustment.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/report/report_json.h"
@@ -102,11 +101,8 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;
 
-  const std::optional<CameraFile> camera_file =
-      args.policy.camera_file.empty() ? std::nullopt : std::optional<CameraFile>(ReadCameraFile(args.policy.camera_file));
   ctx.Info("reading model " + args.model_dir);
   SparseModel model = ReadColmapText(args.model_dir);
-  if (camera_file) ApplyCameraFile(*camera_file, &model, &bundle);
   ctx.Info("model: " + std::to_string(model.cameras.size()) + " cameras, " +
            std::to_string(model.images.size()) + " images, " +
            std::to_string(model.points.size()) + " points, " +
@@ -129,20 +125,14 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
     for (const auto& [name, fix] : csv) gps[name] = fix;
     ctx.Info("GPS CSV: " + std::to_string(csv.size()) + " positions (override EXIF)");
   }
-  const PixelOrigin origin =
-      args.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
-  std::optional<GcpFile> control, checks;
-  if (!args.gcp.empty()) control = ReadGcpFile(args.gcp, origin);
-  if (!args.checkpoints.empty()) checks = ReadGcpFile(args.checkpoints, origin);
-  for (const auto* f : {&control, &checks}) {
-    if (*f) CheckGcpFileCrs(**f);  // before any adjustment, naming file and line
-  }
-
-  GeoreferenceReport report = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
-                                                    checks ? &*checks : nullptr, options);
-  for (auto w = warnings.rbegin(); w != warnings.rend(); ++w) {
-    report.findings.insert(report.findings.begin(), Finding::Warning("INPUT", *w));
-  }
+  SurveyAdjustmentInputs inputs;
+  inputs.gps = std::move(gps);
+  inputs.gcp = args.gcp;
+  inputs.checkpoints = args.checkpoints;
+  inputs.gcp_pixel_origin = args.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
+  inputs.camera_file = args.policy.camera_file;
+  inputs.input_warnings = warnings;
+  const GeoreferenceReport report = AdjustSurvey(&model, inputs, options);
   for (const Finding& f : report.findings) {
     ctx.Warn((f.severity == Severity::kError ? "error " : "") + f.code + ": " + f.message);
   }
@@ -150,11 +140,10 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   WriteColmapText(model, output / "model");
   nlohmann::json json = GeoreferenceReportJson(report, model);
   WriteTextFileAtomically(output / "report.json", json.dump(2) + "\n");
-  WriteTextFileAtomically(output / "exterior_orientation.csv", ExteriorOrientationCsv(report));
-  WriteCamerasGpkg(report, output / "cameras.gpkg");
+  WriteCameraProducts(report, model, output);
   ctx.Info(report.bundle.BriefReport());
-  ctx.Info("wrote " + (output / "model").string() + ", " + (output / "report.json").string() + " and " +
-           (output / "exterior_orientation.csv").string());
+  ctx.Info("wrote " + (output / "model").string() + ", " + (output / "report.json").string() +
+           ", cameras.csv, exterior_orientation.csv and cameras.gpkg");
 
   // An RMSE over no points is not a figure: "nan", never a reassuring 0.0000.
   const auto rmse = [](int count, double value) { return count > 0 ? value : std::nan(""); };

@@ -15,6 +15,23 @@
 
 namespace aerotri {
 
+void GeoreferenceOptions::Check() const {
+  CheckOption(gcp_sigma_h_m > 0.0 && std::isfinite(gcp_sigma_h_m), "--gcp-sigma-h", gcp_sigma_h_m,
+              "a positive number of metres");
+  CheckOption(gcp_sigma_v_m > 0.0 && std::isfinite(gcp_sigma_v_m), "--gcp-sigma-v", gcp_sigma_v_m,
+              "a positive number of metres");
+  CheckOption(helmert_inlier_m >= 0.0 && std::isfinite(helmert_inlier_m), "georeference helmert_inlier_m",
+              helmert_inlier_m, "0 (automatic) or a positive number of metres");
+  CheckOption(weak_focal_rel > 0.0 && weak_focal_rel < 1.0, "georeference weak_focal_rel", weak_focal_rel,
+              "a fraction in (0, 1)");
+  CheckOption(gates.max_rms_px > 0.0, "gates max_rms_px", gates.max_rms_px, "a positive number of pixels");
+  CheckOption(gates.max_gps_inconsistent_fraction > 0.0 && gates.max_gps_inconsistent_fraction <= 1.0,
+              "gates max_gps_inconsistent_fraction", gates.max_gps_inconsistent_fraction, "a fraction in (0, 1]");
+  std::string error;
+  if (!bundle.Validate(&error)) throw InvalidArgument(error);
+  if (!output_crs.empty()) Crs::FromString(output_crs);  // CrsError names it
+}
+
 BundleOptions SurveyBundleOptions() {
   BundleOptions o;
   o.loss = LossType::kHuber;

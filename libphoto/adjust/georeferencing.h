@@ -92,6 +92,11 @@ struct GeoreferenceOptions {
   bool posterior_precision = true;
   BundleOptions bundle = SurveyBundleOptions();
   ProgressCallback progress;
+
+  // Throws InvalidArgument naming the option, its value and the range
+  // (the bundle's options included), CrsError for an output CRS PROJ
+  // cannot create.
+  void Check() const;
 };
 
 struct GroundPointResult {

@@ -70,6 +70,12 @@ class InternalError : public Error {
   using Error::Error;
 };
 
+// An option's check, as the options structs' Check() methods use it: when
+// !ok, throws InvalidArgument "OPTION: expected EXPECTED, got VALUE". option
+// is spelt as on the command line ("--dense-min-views").
+void CheckOption(bool ok, const std::string& option, double value, const std::string& expected);
+void CheckOption(bool ok, const std::string& option, const std::string& value, const std::string& expected);
+
 [[noreturn]] void ThrowInternalError(const char* file, int line,
                                      const char* condition,
                                      const std::string& detail = {});

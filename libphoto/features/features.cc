@@ -13,6 +13,14 @@
 #include "libphoto/base/error.h"
 
 namespace aerotri {
+
+void FeatureOptions::Check() const {
+  CheckOption(max_dimension == 0 || max_dimension >= 32, "--max-dimension", max_dimension,
+              "0 (full size) or at least 32 pixels");
+  CheckOption(max_features >= 1, "--max-features", max_features, "a positive number of features");
+  CheckOption(contrast_threshold > 0.0 && contrast_threshold < 1.0, "features contrast_threshold",
+              contrast_threshold, "a number in (0, 1)");
+}
 namespace {
 
 // Format 2: keypoints in the project's pixel convention. Format 1 files hold

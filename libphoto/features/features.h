@@ -31,6 +31,9 @@ struct FeatureOptions {
   int max_dimension = 1600;          // px of the working image's longer side
   int max_features = 12000;          // kept, spread over the image
   double contrast_threshold = 0.02;  // OpenCV's default 0.04 starves low-texture fields
+
+  // Throws InvalidArgument naming the option, its value and the range.
+  void Check() const;
 };
 
 struct Keypoint {

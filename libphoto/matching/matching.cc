@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -18,6 +19,17 @@
 #include "libphoto/base/parallel.h"
 
 namespace aerotri {
+
+void MatchOptions::Check() const {
+  CheckOption(ratio > 0.0 && ratio <= 1.0, "matching ratio", ratio, "Lowe's ratio in (0, 1]");
+  CheckOption(min_inliers >= 8, "matching min_inliers", min_inliers, "at least 8 (two-view geometry needs them)");
+  CheckOption(max_epipolar_px > 0.0 && std::isfinite(max_epipolar_px), "matching max_epipolar_px", max_epipolar_px,
+              "a positive number of pixels");
+  CheckOption(gps_neighbours >= 1, "--gps-neighbours", gps_neighbours, "at least 1 image");
+  CheckOption(exhaustive_up_to >= 0, "matching exhaustive_up_to", exhaustive_up_to, "0 or more images");
+  CheckOption(flann_checks >= 1, "matching flann_checks", flann_checks, "at least 1");
+  CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
+}
 
 std::vector<std::pair<int, int>> SelectPairs(const std::vector<std::optional<Eigen::Vector2d>>& gps,
                                              const MatchOptions& options, std::string* strategy) {

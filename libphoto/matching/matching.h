@@ -36,6 +36,9 @@ struct MatchOptions {
   int exhaustive_up_to = 12;     // images
   int flann_checks = 128;
   int num_threads = 0;
+
+  // Throws InvalidArgument naming the option, its value and the range.
+  void Check() const;
 };
 
 struct PairMatches {

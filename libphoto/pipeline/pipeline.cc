@@ -26,6 +26,7 @@
 #include "libphoto/dense/dense_stereo.h"
 #include "libphoto/export/contours.h"
 #include "libphoto/io/colmap_text.h"
+#include "libphoto/pipeline/survey_adjustment.h"
 #include "libphoto/pipeline/workspace.h"
 #include "libphoto/report/report_json.h"
 
@@ -290,83 +291,30 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   std::map<std::string, int> index_of_name;
   for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
 
-  std::map<std::string, GpsFix> gps;
+  SurveyAdjustmentInputs inputs;
   for (size_t i = 0; i < ingest.names.size(); ++i) {
-    if (ingest.gps[i]) gps[ingest.names[i]] = *ingest.gps[i];
+    if (ingest.gps[i]) inputs.gps[ingest.names[i]] = *ingest.gps[i];
+    inputs.full_from_model[ingest.names[i]] = ingest.scale[i];
   }
-  // Control files measure full-resolution pixels: convert to working ones.
-  auto load_gcp = [&](const fs::path& path) -> std::optional<GcpFile> {
-    if (path.empty()) return std::nullopt;
-    GcpFile file = ReadGcpFile(path, o.gcp_pixel_origin);
-    for (GroundPoint& p : file.points) {
-      for (GcpMeasurement& m : p.measurements) {
-        const auto it = index_of_name.find(m.image);
-        if (it == index_of_name.end()) continue;
-        m.xy_px = (m.xy_px.array() + 0.5) / ingest.scale[it->second] - 0.5;
-        if (m.sigma_px) *m.sigma_px /= ingest.scale[it->second];
-      }
-    }
-    return file;
-  };
-  const std::optional<GcpFile> control = load_gcp(o.gcp);
-  const std::optional<GcpFile> checks = load_gcp(o.checkpoints);
+  inputs.gcp = o.gcp;
+  inputs.checkpoints = o.checkpoints;
+  inputs.gcp_pixel_origin = o.gcp_pixel_origin;
+  inputs.camera_file = o.camera_file;
 
   json report;
-  const bool can_georeference = !gps.empty() || (control && !control->points.empty());
+  const bool can_georeference = !inputs.gps.empty() || (!o.gcp.empty() && !ReadGcpFile(o.gcp, o.gcp_pixel_origin).points.empty());
   if (can_georeference && !model.images.empty()) {
     GeoreferenceOptions go = o.georef;
-    if (!o.camera_file.empty()) {
-      // The certificate is in full-resolution pixels; each camera group's
-      // images share a working scale.
-      std::vector<double> full_from_working(model.cameras.size(), 1.0);
-      for (const Image& image : model.images) {
-        const auto it = index_of_name.find(image.name);
-        if (it != index_of_name.end()) full_from_working[image.camera] = ingest.scale[it->second];
-      }
-      ApplyCameraFile(ReadCameraFile(o.camera_file), &model, &go.bundle, full_from_working);
-    }
     go.bundle.num_threads = o.num_threads;
     go.bundle.focal_prior_px = ingest.focal_prior_px;
     go.progress = StageProgress(o, "georeference");
-    GeoreferenceReport georef = GeoreferenceAndAdjust(&model, gps, control ? &*control : nullptr,
-                                                      checks ? &*checks : nullptr, go);
+    const GeoreferenceReport georef = AdjustSurvey(&model, inputs, go);
     for (const Finding& f : georef.findings) {
       Log(o, std::string(f.severity == Severity::kError ? "error: " : "warning: ") + f.code + ": " +
                  f.message);
     }
     report = GeoreferenceReportJson(georef, model);
-    // Cameras in the output CRS.
-    const LocalFrame frame(georef.enu_origin);
-    const Crs crs = *georef.output_crs;
-    std::ostringstream csv;
-    // The z column's name says what it is (GDAL / QGIS read x, y by name).
-    const std::string z_name = crs.IsGeocentric() ? "z_geocentric_m"
-                               : crs.IsLocal()    ? "z"
-                               : crs.HasVerticalDatum() ? "z_vertical_datum_m"
-                                                        : "z_ellipsoidal_m";
-    csv << std::setprecision(12) << "name,x,y," << z_name
-        << ",lat_deg,lon_deg,h_ellipsoidal_m,gps_de_m,gps_dn_m,gps_du_m\n";
-    for (const Image& image : model.images) {
-      const Geodetic g = frame.GeodeticFromEnu(image.pose.centre_in_world);
-      const Eigen::Vector3d xyz = crs.FromGeodetic(g);
-      csv << image.name << "," << xyz.x() << "," << xyz.y() << "," << xyz.z() << "," << g.lat_deg
-          << "," << g.lon_deg << "," << g.h_m;
-      for (auto& c : report["cameras"]) {
-        if (c["name"] == image.name) c.update({{"x", xyz.x()}, {"y", xyz.y()}, {"z", xyz.z()}});
-      }
-      const auto result = std::find_if(georef.cameras.begin(), georef.cameras.end(),
-                                       [&](const CameraResult& c) { return c.name == image.name; });
-      if (result != georef.cameras.end() && result->has_prior) {
-        const Eigen::Vector3d& d = result->d_enu_m;  // after the estimated GPS offset, if any
-        csv << "," << d.x() << "," << d.y() << "," << d.z();
-      } else {
-        csv << ",,,";
-      }
-      csv << "\n";
-    }
-    WriteTextFileAtomically(o.workspace / "cameras.csv", csv.str());
-    WriteTextFileAtomically(o.workspace / "exterior_orientation.csv", ExteriorOrientationCsv(georef));
-    WriteCamerasGpkg(georef, o.workspace / "cameras.gpkg");
+    WriteCameraProducts(georef, model, o.workspace);
   } else {
     Log(o, "warning: no GPS and no control points: the survey is not georeferenced "
            "(arbitrary frame and scale)");
@@ -480,12 +428,46 @@ std::string SurveyStatusOf(const std::filesystem::path& workspace) {
   return ReadJson(path, "georeference").value("status", "");
 }
 
+void PipelineOptions::Check() const {
+  CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
+  CheckOption(gps_sigma_h_m > 0.0 && std::isfinite(gps_sigma_h_m), "--gps-sigma-h", gps_sigma_h_m,
+              "a positive number of metres");
+  CheckOption(gps_sigma_v_m > 0.0 && std::isfinite(gps_sigma_v_m), "--gps-sigma-v", gps_sigma_v_m,
+              "a positive number of metres");
+  features.Check();
+  matching.Check();
+  mapper.Check();
+  georef.Check();
+  const auto non_negative = [](double v) { return v >= 0.0 && std::isfinite(v); };
+  const auto positive = [](double v) { return v > 0.0 && std::isfinite(v); };
+  CheckOption(non_negative(dense_resolution_m), "--dense-resolution", dense_resolution_m,
+              "0 (the GSD) or a positive number of metres");
+  CheckOption(dense_image_scale > 0.0 && dense_image_scale <= 1.0, "dense image scale", dense_image_scale,
+              "a fraction of the working images in (0, 1]");
+  CheckOption(dense_min_views >= 1, "--dense-min-views", dense_min_views, "at least 1 depth map");
+  CheckOption(non_negative(dsm_resolution_m), "--dsm-resolution", dsm_resolution_m,
+              "0 (twice the dense spacing) or a positive number of metres");
+  CheckOption(non_negative(dsm_fill_m), "--dsm-fill", dsm_fill_m, "0 (no filling) or a positive number of metres");
+  CheckOption(heights == "egm96" || heights == "ellipsoidal", "--heights", heights, "egm96 or ellipsoidal");
+  CheckOption(positive(ground_cell_m), "--ground-cell", ground_cell_m, "a positive number of metres");
+  CheckOption(positive(ground_window_m), "--ground-window", ground_window_m, "a positive number of metres");
+  CheckOption(non_negative(ground_slope), "--ground-slope", ground_slope, "a slope (rise / run) of 0 or more");
+  CheckOption(non_negative(ground_threshold_m), "--ground-threshold", ground_threshold_m, "0 or more metres");
+  CheckOption(non_negative(contour_interval_m), "--contour-interval", contour_interval_m,
+              "0 (automatic) or a positive number of metres");
+  CheckOption(non_negative(ortho_resolution_m), "--ortho-resolution", ortho_resolution_m,
+              "0 (the GSD) or a positive number of metres");
+  CheckOption(ortho_surface == "dsm" || ortho_surface == "dtm", "--ortho-surface", ortho_surface, "dsm or dtm");
+  CheckOption(ortho_compress == "JPEG" || ortho_compress == "DEFLATE", "--ortho-compress", ortho_compress,
+              "JPEG or DEFLATE");
+}
+
 void ValidateInputs(const PipelineOptions& o) {
+  o.Check();
   if (!o.images_dir.empty() && !fs::is_directory(o.images_dir)) {
     throw IoError(o.images_dir.string(), "not a folder of images");
   }
   if (!o.images_dir.empty()) IngestStageOptions(o).Check();
-  if (!o.georef.output_crs.empty()) Crs::FromString(o.georef.output_crs);  // CrsError names it
   if (!o.gps_csv.empty()) ReadGpsFile(o.gps_csv, o.gps_altitude, o.gps_sigma_h_m, o.gps_sigma_v_m);
   // Control and check files: readable, their CRS known to PROJ, their images
   // in the folder (a name that is not is a warning: that line is skipped).
@@ -547,35 +529,6 @@ void CleanUpIntermediates(const PipelineOptions& o) {
   fs::remove_all(depth);
   Log(o, "cleanup: removed " + depth.string() + " (the dense stage's depth maps, " + std::to_string(bytes >> 20) +
              " MB); the deliverables, features and matches stay");
-}
-
-void WriteCamerasGpkg(const GeoreferenceReport& r, const fs::path& path) {
-  Crs crs = Crs::FromString(r.crs);
-  if (crs.IsLocal() && r.local_origin) crs = crs.LocalAt(*r.local_origin);
-  const std::string z = crs.IsGeocentric() ? "geocentric Z"
-                        : crs.IsLocal()    ? "the local frame's z"
-                        : crs.HasVerticalDatum() ? "heights of the vertical datum of " + crs.Name()
-                                                 : "WGS84 ellipsoidal heights";
-  std::vector<GpkgPoint> points;
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (const CameraResult& c : r.cameras) {
-    GpkgPoint p;
-    p.xyz = c.position_crs;
-    p.text = {c.name};
-    p.numbers = {c.opk_deg.x(), c.opk_deg.y(), c.opk_deg.z()};
-    for (int k = 0; k < 3; ++k) p.numbers.push_back(c.has_precision ? c.sigma_position_m[k] : nan);
-    for (int k = 0; k < 3; ++k) p.numbers.push_back(c.has_precision ? c.sigma_opk_deg[k] : nan);
-    for (int k = 0; k < 3; ++k) p.numbers.push_back(c.has_prior ? c.d_enu_m[k] : nan);
-    points.push_back(p);
-  }
-  WritePointsGpkg(path, "cameras", crs.Wkt(),
-                  "aerotri camera centres in " + crs.Name() + "; z: " + z +
-                      "; omega, phi, kappa as in exterior_orientation.csv; gps_d*: adjusted minus GPS (east, "
-                      "north, up, m)",
-                  {"name"},
-                  {"omega_deg", "phi_deg", "kappa_deg", "sigma_x_m", "sigma_y_m", "sigma_z_m", "sigma_omega_deg",
-                   "sigma_phi_deg", "sigma_kappa_deg", "gps_de_m", "gps_dn_m", "gps_du_m"},
-                  points);
 }
 
 std::string RunPipeline(const PipelineOptions& o) {

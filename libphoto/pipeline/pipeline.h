@@ -100,6 +100,12 @@ struct PipelineOptions {
   std::function<ProgressCallback(const std::string& stage)> progress;
   // Messages for the user (warnings, stage skipped); may be null.
   std::function<void(const std::string&)> log;
+
+  // Every stage's options (FeatureOptions::Check, MatchOptions::Check,
+  // MapperOptions::Check, GeoreferenceOptions::Check and the dense, terrain
+  // and ortho fields above): throws InvalidArgument naming the option, its
+  // value and what was expected. ValidateInputs calls it first.
+  void Check() const;
 };
 
 // Each returns true when it ran, false when skipped (product present).
@@ -126,10 +132,6 @@ std::string RunPipeline(const PipelineOptions& options);
 // options.cleanup's work, run after the report: removes OUTPUT/depth/ (the
 // dense stage's depth maps) and says how much it freed; nothing else.
 void CleanUpIntermediates(const PipelineOptions& options);
-// cameras.gpkg: the adjusted camera centres as a GeoPackage point layer in
-// the output CRS (GDAL and QGIS read its CRS), with omega / phi / kappa,
-// their posterior sigmas and the GPS residuals; the description says what z is.
-void WriteCamerasGpkg(const GeoreferenceReport& report, const std::filesystem::path& path);
 // report.json's status in a workspace, or "" before the georeference stage.
 std::string SurveyStatusOf(const std::filesystem::path& workspace);
 

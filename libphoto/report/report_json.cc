@@ -238,6 +238,9 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
       cj["sigma_v_m"] = c.sigma_v_m;
     }
     cj["position"] = {c.position_crs.x(), c.position_crs.y(), c.position_crs.z()};
+    cj["x"] = c.position_crs.x();  // the same, by name (the report's map)
+    cj["y"] = c.position_crs.y();
+    cj["z"] = c.position_crs.z();
     cj["omega_phi_kappa_deg"] = {c.opk_deg.x(), c.opk_deg.y(), c.opk_deg.z()};
     if (c.has_precision) {
       cj["sigma_position_m"] = {c.sigma_position_m.x(), c.sigma_position_m.y(), c.sigma_position_m.z()};

@@ -14,6 +14,20 @@
 #include "libphoto/geometry/triangulation.h"
 
 namespace aerotri {
+
+void MapperOptions::Check() const {
+  CheckOption(min_pnp_inliers >= 4, "mapper min_pnp_inliers", min_pnp_inliers, "at least 4 (P3P and one to check)");
+  CheckOption(max_reprojection_px > 0.0 && std::isfinite(max_reprojection_px), "mapper max_reprojection_px",
+              max_reprojection_px, "a positive number of pixels");
+  CheckOption(min_triangulation_angle_deg >= 0.0 && min_triangulation_angle_deg < 90.0,
+              "mapper min_triangulation_angle_deg", min_triangulation_angle_deg, "an angle in [0, 90) degrees");
+  CheckOption(init_min_median_angle_deg >= 0.0 && init_min_median_angle_deg < 90.0,
+              "mapper init_min_median_angle_deg", init_min_median_angle_deg, "an angle in [0, 90) degrees");
+  CheckOption(init_candidates >= 1, "mapper init_candidates", init_candidates, "at least 1 pair");
+  CheckOption(rescue_search_radius_px > 0.0 && std::isfinite(rescue_search_radius_px),
+              "mapper rescue_search_radius_px", rescue_search_radius_px, "a positive number of pixels");
+  CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
+}
 namespace {
 
 // The state OpenCV's RNG is reset to before each RANSAC (a fixed seed:

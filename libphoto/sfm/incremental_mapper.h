@@ -46,6 +46,9 @@ struct MapperOptions {
   // Focal-length priors per camera group (see BundleOptions).
   std::vector<double> focal_prior_px;
   ProgressCallback progress;
+
+  // Throws InvalidArgument naming the option, its value and the range.
+  void Check() const;
 };
 
 struct ImageRegistration {

@@ -1,0 +1,134 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The one georeferencing entry point of run and adjust: control files measure
+// full-resolution pixels and must be brought to the model's, input warnings
+// come first among the findings, and the camera products are written.
+#include "libphoto/pipeline/survey_adjustment.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/io/colmap_text.h"
+#include "libphoto/simulate/survey_writer.h"
+#include "tests/test_util.h"
+
+namespace aerotri {
+namespace {
+namespace fs = std::filesystem;
+
+class SurveyAdjustment : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new testing::TempDir();
+    SimulationOptions sim;
+    sim.render_images = false;
+    sim.survey.seed = 21;
+    sim.survey.area_width_m = 120.0;
+    sim.survey.area_height_m = 90.0;
+    sim.survey.num_tie_points = 600;
+    sim.georef.seed = 21;
+    WriteSyntheticSurvey(sim, dir_->path());
+  }
+  static void TearDownTestSuite() { delete dir_; }
+
+  static SurveyAdjustmentInputs Inputs() {
+    SurveyAdjustmentInputs inputs;
+    inputs.gps = ReadGpsFile(dir_->path() / "gps.csv", AltitudeReference::kEgm96, 3.0, 5.0);
+    inputs.gcp = dir_->path() / "gcp_list.txt";
+    inputs.checkpoints = dir_->path() / "checkpoints.txt";
+    return inputs;
+  }
+  static SparseModel Model() { return ReadColmapText(dir_->path() / "model"); }
+
+  static testing::TempDir* dir_;
+};
+testing::TempDir* SurveyAdjustment::dir_ = nullptr;
+
+// The model at half the files' resolution, as the pipeline's working images:
+// pixel centres at integers, so x_half = (x + 0.5) / 2 - 0.5.
+SparseModel AtHalfResolution(SparseModel model) {
+  const auto half = [](double x) { return (x + 0.5) / 2.0 - 0.5; };
+  for (Camera& camera : model.cameras) {
+    camera.width /= 2;
+    camera.height /= 2;
+    const CameraModelInfo& info = camera.info();
+    for (int k : info.focal_params) camera.params[k] /= 2.0;
+    for (int k : info.principal_point_params) camera.params[k] = half(camera.params[k]);
+  }
+  for (Observation& obs : model.observations) obs.xy = {half(obs.xy.x()), half(obs.xy.y())};
+  return model;
+}
+
+TEST_F(SurveyAdjustment, ControlMarksAreBroughtToTheModelsPixels) {
+  SparseModel full = Model();
+  const GeoreferenceReport at_full = AdjustSurvey(&full, Inputs(), GeoreferenceOptions());
+  ASSERT_EQ(at_full.control_stats.count, 8);
+  ASSERT_EQ(at_full.check_stats.count, 6);
+  // Marks clicked with 0.3 px noise on a 2 cm GSD: centimetres.
+  EXPECT_LT(at_full.check_stats.rmse_3d_m, 0.10);
+  EXPECT_GT(at_full.check_stats.rmse_3d_m, 0.002);
+
+  // The same survey at half resolution, told so: the same answer to the
+  // marks' noise (half the pixels, each worth twice the ground).
+  SurveyAdjustmentInputs inputs = Inputs();
+  SparseModel half = AtHalfResolution(Model());
+  for (const Image& image : half.images) inputs.full_from_model[image.name] = 2.0;
+  const GeoreferenceReport at_half = AdjustSurvey(&half, inputs, GeoreferenceOptions());
+  ASSERT_EQ(at_half.check_stats.count, 6);
+  EXPECT_LT(at_half.check_stats.rmse_3d_m, 2.0 * at_full.check_stats.rmse_3d_m + 0.01);
+  EXPECT_LT(at_half.control_stats.rmse_3d_m, 2.0 * at_full.control_stats.rmse_3d_m + 0.01);
+
+  // Not told: every mark lands twice as far from the image corner, and the
+  // control no longer fits.
+  SparseModel untold = AtHalfResolution(Model());
+  const GeoreferenceReport wrong = AdjustSurvey(&untold, Inputs(), GeoreferenceOptions());
+  EXPECT_GT(wrong.check_stats.rmse_3d_m, 10.0 * at_half.check_stats.rmse_3d_m);
+}
+
+TEST_F(SurveyAdjustment, InputWarningsComeFirstAndTheCameraProductsAreWritten) {
+  SparseModel model = Model();
+  SurveyAdjustmentInputs inputs = Inputs();
+  inputs.input_warnings = {"first problem", "second problem"};
+  const GeoreferenceReport report = AdjustSurvey(&model, inputs, GeoreferenceOptions());
+  ASSERT_GE(report.findings.size(), 2u);
+  EXPECT_EQ(report.findings[0].code, "INPUT");
+  EXPECT_EQ(report.findings[0].message, "first problem");
+  EXPECT_EQ(report.findings[1].message, "second problem");
+
+  testing::TempDir out;
+  WriteCameraProducts(report, model, out.path());
+  for (const char* name : {"cameras.csv", "exterior_orientation.csv", "cameras.gpkg"}) {
+    EXPECT_TRUE(fs::exists(out.path() / name)) << name;
+  }
+  std::ifstream csv(out.path() / "cameras.csv");
+  std::string header, first;
+  std::getline(csv, header);
+  std::getline(csv, first);
+  // A 2D EPSG code without a geoid: the heights are ellipsoidal, and say so.
+  EXPECT_EQ(header.rfind("name,x,y,z_", 0), 0u) << header;
+  EXPECT_NE(header.find(",lat_deg,lon_deg,h_ellipsoidal_m,gps_de_m,gps_dn_m,gps_du_m"), std::string::npos);
+  // The first camera's easting matches the report's.
+  const std::string x = first.substr(first.find(',') + 1);
+  EXPECT_NEAR(std::stod(x), report.cameras.front().position_crs.x(), 1e-3);
+}
+
+TEST_F(SurveyAdjustment, AControlFileInAnUnknownCrsIsRefusedBeforeAnyAdjustment) {
+  testing::TempDir dir;
+  const fs::path bad = dir.path() / "gcp.txt";
+  std::ofstream(bad) << "EPSG:999999\n500000 5000000 100 10 10 IMG_0001.JPG gcp1\n";
+  SparseModel model = Model();
+  const SparseModel before = model;
+  SurveyAdjustmentInputs inputs = Inputs();
+  inputs.gcp = bad;
+  try {
+    AdjustSurvey(&model, inputs, GeoreferenceOptions());
+    FAIL() << "accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("gcp.txt"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(model.images[0].pose.centre_in_world, before.images[0].pose.centre_in_world);
+}
+
+}  // namespace
+}  // namespace aerotri
