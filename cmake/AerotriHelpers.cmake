@@ -67,7 +67,8 @@ function(aerotri_check_layering)
   include(${PROJECT_SOURCE_DIR}/cmake/CheckLayering.cmake)
 endfunction()
 
-# aerotri_add_test(<module> <name> SOURCES ... [DEPS ...] [TIER unit|pipeline|realdata])
+# aerotri_add_test(<module> <name> SOURCES ... [DEPS ...] [TIER unit|pipeline|realdata]
+#                  [STATISTICS <gtest pattern>...])
 # One gtest executable per unit; each of its test cases is registered in ctest
 # as <module>/<name>.<Suite>.<Case> (gtest_discover_tests, listed when ctest
 # runs), so `ctest -R georef/` runs one module, cases run in parallel, and a
@@ -77,7 +78,7 @@ endfunction()
 # cases share expensive state in one process (a rendered survey and its
 # workspace); a skip anywhere marks the whole entry skipped.
 function(aerotri_add_test module name)
-  cmake_parse_arguments(ARG "WHOLE" "TIER;TIMEOUT" "SOURCES;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "WHOLE" "TIER;TIMEOUT" "SOURCES;DEPS;STATISTICS" ${ARGN})
   if(NOT ARG_TIER)
     set(ARG_TIER unit)
   endif()
@@ -104,9 +105,29 @@ function(aerotri_add_test module name)
                          SKIP_REGULAR_EXPRESSION "${skipped}")
     return()
   endif()
+  if(NOT ARG_STATISTICS)
+    gtest_discover_tests(${target}
+      TEST_PREFIX "${module}/${name}."
+      DISCOVERY_MODE PRE_TEST
+      PROPERTIES LABELS ${ARG_TIER} TIMEOUT ${ARG_TIMEOUT}
+                 SKIP_REGULAR_EXPRESSION "${skipped}")
+    return()
+  endif()
+  # STATISTICS: gtest patterns (Suite.Case, '*' allowed) of cases whose truth
+  # is statistical and takes blocks big enough to judge it (8 s or more
+  # each): labelled `statistics`, the rest of the executable keeps its tier,
+  # so the unit tier stays under two minutes.
+  list(JOIN ARG_STATISTICS ":" patterns)
   gtest_discover_tests(${target}
     TEST_PREFIX "${module}/${name}."
+    TEST_FILTER "-${patterns}"
     DISCOVERY_MODE PRE_TEST
     PROPERTIES LABELS ${ARG_TIER} TIMEOUT ${ARG_TIMEOUT}
+               SKIP_REGULAR_EXPRESSION "${skipped}")
+  gtest_discover_tests(${target}
+    TEST_PREFIX "${module}/${name}."
+    TEST_FILTER "${patterns}"
+    DISCOVERY_MODE PRE_TEST
+    PROPERTIES LABELS statistics TIMEOUT ${ARG_TIMEOUT}
                SKIP_REGULAR_EXPRESSION "${skipped}")
 endfunction()

@@ -7,6 +7,7 @@
 #include <map>
 #include <random>
 
+#include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/sfm/incremental_mapper.h"
 #include "libphoto/sfm/tracks.h"
 #include "libphoto/simulate/synthetic_survey.h"
@@ -156,8 +157,8 @@ TEST(IncrementalMapper, RegistersEveryImageOfASyntheticBlockToTheNoiseLevel) {
     truth.push_back(s.truth.images[i].pose.centre_in_world);
   }
   const double centre_rms = testing::AlignedRms(estimated, truth);
-  EXPECT_LT(centre_rms, 0.25);
-  EXPECT_GT(centre_rms, 1e-4);  // noisy data cannot give the truth exactly
+  EXPECT_LT(centre_rms, 0.15);
+  EXPECT_GT(centre_rms, 0.003);  // noisy data cannot give the truth exactly
 }
 
 TEST(IncrementalMapper, AnImageWithoutMatchesIsLeftOutAndSaysWhy) {
