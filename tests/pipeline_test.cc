@@ -20,6 +20,7 @@
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/point_cloud.h"
 #include "libphoto/io/colmap_text.h"
+#include "libphoto/pipeline/workspace.h"
 #include "libphoto/simulate/render.h"
 #include "libphoto/simulate/survey_writer.h"
 #include "tests/test_util.h"
@@ -486,6 +487,43 @@ TEST_F(Pipeline, ChangedOptionsRerunTheirStage) {
   EXPECT_FALSE(RunDenseStage(o));
   o.dsm_fill_m = 0.5;
   EXPECT_TRUE(RunDenseStage(o));
+
+  // The tie-point stages record theirs too. Copied products under the same
+  // options stand; a changed match option reruns matching, and the
+  // reconstruction built on the old matches reruns after it.
+  const auto said_in_log = [&log](const std::string& text) {
+    bool found = false;
+    for (const auto& line : log) found |= line.find(text) != std::string::npos;
+    return found;
+  };
+  EXPECT_FALSE(RunFeatureStage(o));
+  EXPECT_FALSE(RunMatchStage(o));
+  EXPECT_FALSE(RunReconstructStage(o));
+  log.clear();
+  o.matching.min_inliers = 25;
+  EXPECT_TRUE(RunMatchStage(o));
+  EXPECT_TRUE(said_in_log("min_inliers: 20 -> 25")) << ::testing::PrintToString(log);
+  EXPECT_FALSE(RunMatchStage(o));
+  EXPECT_TRUE(RunReconstructStage(o));
+  EXPECT_TRUE(said_in_log("reconstruct: options or inputs changed"));
+  EXPECT_FALSE(RunReconstructStage(o));
+  // A changed mapper option reruns the reconstruction only.
+  o.mapper.min_pnp_inliers = 20;
+  EXPECT_FALSE(RunMatchStage(o));
+  EXPECT_TRUE(RunReconstructStage(o));
+  // Other feature options: every image's features again, and the matches after them.
+  log.clear();
+  o.features.max_features = 6000;
+  EXPECT_TRUE(RunFeatureStage(o));
+  EXPECT_TRUE(said_in_log("max_features: 12000 -> 6000")) << ::testing::PrintToString(log);
+  EXPECT_FALSE(RunFeatureStage(o));
+  EXPECT_FALSE(fs::exists(o.workspace / "matches.bin"));
+  EXPECT_TRUE(RunMatchStage(o));
+  const MatchRecord matches = LoadMatchRecord(o);
+  EXPECT_GT(matches.verified_pairs, 10);
+  for (const MatchRecord::Image& im : matches.images) EXPECT_LE(im.features, 6000) << im.name;
+  EXPECT_TRUE(RunReconstructStage(o));
+  EXPECT_GE(LoadReconstructionRecord(o).registered, static_cast<int>(truth_->images.size()) - 2);
 }
 
 }  // namespace

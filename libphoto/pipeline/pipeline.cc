@@ -39,8 +39,14 @@ using Clock = std::chrono::steady_clock;
 bool RunIngestStage(const PipelineOptions& o) {
   const fs::path out = o.workspace / "ingest.json";
   if (fs::exists(out) && !o.force) {
-    const std::string changed =
-        FingerprintChanges(ReadJson(out, "ingest").value("options", json()), IngestFingerprint(o));
+    const json recorded = ReadJson(out, "ingest");
+    std::string changed = FingerprintChanges(recorded.value("options", json()), IngestFingerprint(o));
+    // The working resolution sets every image's scale and the cameras' pixels.
+    const int working = recorded.value("working_max_dimension", o.features.max_dimension);
+    if (working != o.features.max_dimension) {
+      changed += (changed.empty() ? "" : "; ") + std::string("max_dimension: ") + std::to_string(working) + " -> " +
+                 std::to_string(o.features.max_dimension);
+    }
     if (changed.empty()) {
       Log(o, "ingest: done already (" + out.string() + ")");
       return false;
@@ -60,6 +66,18 @@ bool RunIngestStage(const PipelineOptions& o) {
 bool RunFeatureStage(const PipelineOptions& o) {
   IngestView ingest = LoadIngest(o);
   const fs::path images_dir = ingest.ImagesDir(o);
+  // Features extracted under other options are all extracted again.
+  const fs::path record = o.workspace / "features" / "options.json";
+  const json options = FeatureFingerprint(o);
+  if (fs::exists(o.workspace / "features") && !o.force) {
+    const std::string changed =
+        FingerprintChanges(fs::exists(record) ? ReadJson(record, "features") : json(), options);
+    if (!changed.empty()) {
+      Log(o, "features: options changed since " + record.string() + " (" + changed +
+                 "): every image's features are extracted again, and the stages after it rerun");
+      fs::remove_all(o.workspace / "features");
+    }
+  }
   std::vector<size_t> todo;
   for (size_t i = 0; i < ingest.names.size(); ++i) {
     if (ingest.usable[i] && (o.force || !fs::exists(FeaturePath(o, ingest.names[i])))) todo.push_back(i);
@@ -70,6 +88,8 @@ bool RunFeatureStage(const PipelineOptions& o) {
   }
   const auto start = Clock::now();
   fs::create_directories(o.workspace / "features");
+  // Recorded first, so that an interrupted extraction resumes under the same options.
+  WriteTextFileAtomically(record, options.dump(2) + "\n");
   // New features invalidate the matches (they index the old keypoints) and
   // what was built from them: those stages rerun.
   if (fs::exists(o.workspace / "matches.bin")) {
@@ -104,9 +124,17 @@ bool RunFeatureStage(const PipelineOptions& o) {
 
 bool RunMatchStage(const PipelineOptions& o) {
   const fs::path out = o.workspace / "matches.bin";
+  const fs::path summary_path = o.workspace / "matches.json";
   if (fs::exists(out) && !o.force) {
-    Log(o, "match: done already (" + out.string() + ")");
-    return false;
+    const std::string changed = FingerprintChanges(
+        fs::exists(summary_path) ? ReadJson(summary_path, "match").value("options", json()) : json(),
+        MatchFingerprint(o));
+    if (changed.empty()) {
+      Log(o, "match: done already (" + out.string() + ")");
+      return false;
+    }
+    Log(o, "match: options or inputs changed since " + summary_path.string() + " (" + changed +
+               "): rerunning, and the stages after it");
   }
   const auto start = Clock::now();
   IngestView ingest = LoadIngest(o);
@@ -137,11 +165,11 @@ bool RunMatchStage(const PipelineOptions& o) {
   }
   const std::vector<PairMatches> matches = MatchPairs(features, pairs, mo, StageProgress(o, "match"));
   WriteMatches(matches, out);
-  json summary;
-  summary["strategy"] = strategy;
-  summary["candidate_pairs"] = pairs.size();
-  summary["verified_pairs"] = matches.size();
-  json per_image = json::array();
+  MatchRecord summary;
+  summary.strategy = strategy;
+  summary.candidate_pairs = static_cast<int>(pairs.size());
+  summary.verified_pairs = static_cast<int>(matches.size());
+  summary.options = MatchFingerprint(o);
   std::vector<int> pair_count(ingest.names.size(), 0), match_count(ingest.names.size(), 0);
   for (const PairMatches& m : matches) {
     ++pair_count[m.i];
@@ -150,16 +178,13 @@ bool RunMatchStage(const PipelineOptions& o) {
     match_count[m.j] += static_cast<int>(m.inliers.size());
   }
   for (size_t i = 0; i < ingest.names.size(); ++i) {
-    per_image.push_back({{"name", ingest.names[i]},
-                         {"features", features[i].keypoints.size()},
-                         {"verified_pairs", pair_count[i]},
-                         {"verified_matches", match_count[i]}});
+    summary.images.push_back({ingest.names[i], static_cast<int>(features[i].keypoints.size()), pair_count[i],
+                              match_count[i]});
     if (ingest.usable[i] && pair_count[i] == 0) {
       Log(o, "warning: " + ingest.names[i] + " overlaps no other image (no verified pair)");
     }
   }
-  summary["images"] = per_image;
-  WriteTextFileAtomically(o.workspace / "matches.json", summary.dump(2) + "\n");
+  WriteTextFileAtomically(summary_path, ToJson(summary).dump(2) + "\n");
   RecordTiming(o, "match", std::chrono::duration<double>(Clock::now() - start).count());
   return true;
 }
@@ -167,8 +192,14 @@ bool RunMatchStage(const PipelineOptions& o) {
 bool RunReconstructStage(const PipelineOptions& o) {
   const fs::path out_json = o.workspace / "reconstruction.json";
   if (fs::exists(out_json) && !o.force) {
-    Log(o, "reconstruct: done already (" + out_json.string() + ")");
-    return false;
+    const std::string changed =
+        FingerprintChanges(ReadJson(out_json, "reconstruct").value("options", json()), ReconstructFingerprint(o));
+    if (changed.empty()) {
+      Log(o, "reconstruct: done already (" + out_json.string() + ")");
+      return false;
+    }
+    Log(o, "reconstruct: options or inputs changed since " + out_json.string() + " (" + changed +
+               "): rerunning, and the stages after it");
   }
   const auto start = Clock::now();
   IngestView ingest = LoadIngest(o);
@@ -212,24 +243,23 @@ bool RunReconstructStage(const PipelineOptions& o) {
     registered.observations.push_back(obs);
   }
   WriteColmapText(registered, o.workspace / "reconstruction");
-  json doc;
-  doc["initial_pair"] = result.initial_pair;
-  doc["tracks"] = result.num_tracks;
-  doc["dropped_inconsistent_tracks"] = result.dropped_inconsistent_tracks;
-  doc["global_adjustments"] = result.global_adjustments;
-  doc["registered"] = registered.images.size();
-  json images = json::array();
+  ReconstructionRecord doc;
+  doc.initial_pair = result.initial_pair;
+  doc.tracks = result.num_tracks;
+  doc.dropped_inconsistent_tracks = result.dropped_inconsistent_tracks;
+  doc.global_adjustments = result.global_adjustments;
+  doc.registered = static_cast<int>(registered.images.size());
   for (size_t i = 0; i < ingest.names.size(); ++i) {
-    json im = {{"name", ingest.names[i]}, {"registered", result.images[i].registered}};
+    ReconstructionRecord::Image im{ingest.names[i], result.images[i].registered, ""};
     if (!ingest.usable[i]) {
-      im["why_not"] = "unusable image (unreadable or undecodable)";
-    } else if (!result.images[i].registered) {
-      im["why_not"] = result.images[i].why_not;
+      im.why_not = "unusable image (unreadable or undecodable)";
+    } else if (!im.registered) {
+      im.why_not = result.images[i].why_not;
     }
-    images.push_back(im);
+    doc.images.push_back(im);
   }
-  doc["images"] = images;
-  WriteTextFileAtomically(out_json, doc.dump(2) + "\n");
+  doc.options = ReconstructFingerprint(o);
+  WriteTextFileAtomically(out_json, ToJson(doc).dump(2) + "\n");
   RecordTiming(o, "reconstruct", std::chrono::duration<double>(Clock::now() - start).count());
   return true;
 }
@@ -286,7 +316,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   }
   const auto start = Clock::now();
   IngestView ingest = LoadIngest(o);
-  const json recon = ReadJson(o.workspace / "reconstruction.json", "reconstruct");
+  const ReconstructionRecord recon = LoadReconstructionRecord(o);
   SparseModel model = ReadColmapText(o.workspace / "reconstruction");
   std::map<std::string, int> index_of_name;
   for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
@@ -340,26 +370,26 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   }
   json images = json::array();
   int registered = 0;
-  for (const json& im : recon.at("images")) {
-    json entry = im;
-    if (const auto e = image_error.find(im.at("name").get<std::string>()); e != image_error.end() && e->second.second > 0) {
+  for (const ReconstructionRecord::Image& im : recon.images) {
+    json entry = {{"name", im.name}, {"registered", im.registered}};
+    if (!im.registered) entry["why_not"] = im.why_not;
+    if (const auto e = image_error.find(im.name); e != image_error.end() && e->second.second > 0) {
       entry["reprojection_rms_px"] = std::sqrt(e->second.first / e->second.second);
       entry["observations"] = e->second.second;
     }
-    const auto it = index_of_name.find(im.at("name").get<std::string>());
+    const auto it = index_of_name.find(im.name);
     entry["gps"] = it != index_of_name.end() && ingest.gps[it->second].has_value();
-    registered += im.at("registered").get<bool>() ? 1 : 0;
+    registered += im.registered ? 1 : 0;
     images.push_back(entry);
   }
   report["images"] = {{"total", ingest.names.size()}, {"registered", registered}, {"per_image", images}};
-  report["reconstruction"] = {{"initial_pair", recon.value("initial_pair", "")},
-                              {"tracks", recon.value("tracks", 0)}};
+  report["reconstruction"] = {{"initial_pair", recon.initial_pair}, {"tracks", recon.tracks}};
   if (fs::exists(o.workspace / "matches.json")) {
-    const json m = json::parse(ReadTextFile(o.workspace / "matches.json"));
-    report["matching"] = {{"strategy", m.value("strategy", "")},
-                          {"candidate_pairs", m.value("candidate_pairs", 0)},
-                          {"verified_pairs", m.value("verified_pairs", 0)},
-                          {"per_image", m.value("images", json::array())}};
+    const json m = ToJson(LoadMatchRecord(o));
+    report["matching"] = {{"strategy", m.at("strategy")},
+                          {"candidate_pairs", m.at("candidate_pairs")},
+                          {"verified_pairs", m.at("verified_pairs")},
+                          {"per_image", m.at("images")}};
   }
   report["georeference_options"] = GeoreferenceFingerprint(o);
   report["provenance"] = Provenance(o, ingest.record.options);
@@ -372,8 +402,8 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   {
     std::vector<Finding> findings;
     std::vector<std::string> unregistered;
-    for (const json& im : recon.at("images")) {
-      if (!im.at("registered").get<bool>()) unregistered.push_back(im.at("name").get<std::string>());
+    for (const ReconstructionRecord::Image& im : recon.images) {
+      if (!im.registered) unregistered.push_back(im.name);
     }
     if (!unregistered.empty()) {
       findings.push_back(Finding::Warning(

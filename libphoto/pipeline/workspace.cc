@@ -132,6 +132,135 @@ nlohmann::json IngestFingerprint(const PipelineOptions& o) {
           {"gps_csv", ContentHash(o.gps_csv)}};
 }
 
+nlohmann::json FeatureFingerprint(const PipelineOptions& o) {
+  return {{"max_dimension", o.features.max_dimension},
+          {"max_features", o.features.max_features},
+          {"contrast_threshold", o.features.contrast_threshold}};
+}
+
+nlohmann::json MatchFingerprint(const PipelineOptions& o) {
+  const MatchOptions& m = o.matching;
+  return {{"features", ContentHash(o.workspace / "features" / "options.json")},
+          {"ratio", m.ratio},
+          {"min_inliers", m.min_inliers},
+          {"max_epipolar_px", m.max_epipolar_px},
+          {"gps_neighbours", m.gps_neighbours},
+          {"exhaustive_up_to", m.exhaustive_up_to},
+          {"flann_checks", m.flann_checks}};
+}
+
+nlohmann::json ReconstructFingerprint(const PipelineOptions& o) {
+  const MapperOptions& m = o.mapper;
+  return {{"matches", ContentHash(o.workspace / "matches.json")},
+          {"min_pnp_inliers", m.min_pnp_inliers},
+          {"max_reprojection_px", m.max_reprojection_px},
+          {"min_triangulation_angle_deg", m.min_triangulation_angle_deg},
+          {"init_min_median_angle_deg", m.init_min_median_angle_deg},
+          {"init_candidates", m.init_candidates},
+          {"gps_rescue", m.gps_rescue},
+          {"rescue_search_radius_px", m.rescue_search_radius_px}};
+}
+
+namespace {
+
+// A record's field, or ParseError naming the file and the field.
+template <typename T>
+T Field(const nlohmann::json& doc, const char* key, const std::string& path) {
+  if (!doc.is_object() || !doc.contains(key)) throw ParseError(path, 0, std::string("missing field '") + key + "'");
+  try {
+    return doc.at(key).get<T>();
+  } catch (const nlohmann::json::exception&) {
+    throw ParseError(path, 0, std::string("field '") + key + "' has the wrong type: " + doc.at(key).dump());
+  }
+}
+
+void CheckSchema(const nlohmann::json& doc, int known, const std::string& path) {
+  // Files written before records had a version are version 1.
+  const int version = doc.is_object() ? doc.value("schema_version", 1) : 0;
+  if (version != known) {
+    throw ParseError(path, 0, "schema_version " + std::to_string(version) + " is not one this aerotri reads (" +
+                                  std::to_string(known) + "): rerun the stage with --force");
+  }
+}
+
+}  // namespace
+
+nlohmann::json ToJson(const MatchRecord& r) {
+  nlohmann::json images = nlohmann::json::array();
+  for (const MatchRecord::Image& im : r.images) {
+    images.push_back({{"name", im.name},
+                      {"features", im.features},
+                      {"verified_pairs", im.verified_pairs},
+                      {"verified_matches", im.verified_matches}});
+  }
+  return {{"schema_version", MatchRecord::kSchemaVersion},
+          {"strategy", r.strategy},
+          {"candidate_pairs", r.candidate_pairs},
+          {"verified_pairs", r.verified_pairs},
+          {"images", images},
+          {"options", r.options}};
+}
+
+MatchRecord MatchRecordFromJson(const nlohmann::json& doc, const std::string& path) {
+  CheckSchema(doc, MatchRecord::kSchemaVersion, path);
+  MatchRecord r;
+  r.strategy = Field<std::string>(doc, "strategy", path);
+  r.candidate_pairs = Field<int>(doc, "candidate_pairs", path);
+  r.verified_pairs = Field<int>(doc, "verified_pairs", path);
+  for (const auto& im : Field<nlohmann::json>(doc, "images", path)) {
+    r.images.push_back({Field<std::string>(im, "name", path), Field<int>(im, "features", path),
+                        Field<int>(im, "verified_pairs", path), Field<int>(im, "verified_matches", path)});
+  }
+  r.options = doc.value("options", nlohmann::json());
+  return r;
+}
+
+nlohmann::json ToJson(const ReconstructionRecord& r) {
+  nlohmann::json images = nlohmann::json::array();
+  for (const ReconstructionRecord::Image& im : r.images) {
+    nlohmann::json j = {{"name", im.name}, {"registered", im.registered}};
+    if (!im.registered) j["why_not"] = im.why_not;
+    images.push_back(j);
+  }
+  return {{"schema_version", ReconstructionRecord::kSchemaVersion},
+          {"initial_pair", r.initial_pair},
+          {"tracks", r.tracks},
+          {"dropped_inconsistent_tracks", r.dropped_inconsistent_tracks},
+          {"global_adjustments", r.global_adjustments},
+          {"registered", r.registered},
+          {"images", images},
+          {"options", r.options}};
+}
+
+ReconstructionRecord ReconstructionRecordFromJson(const nlohmann::json& doc, const std::string& path) {
+  CheckSchema(doc, ReconstructionRecord::kSchemaVersion, path);
+  ReconstructionRecord r;
+  r.initial_pair = Field<std::string>(doc, "initial_pair", path);
+  r.tracks = Field<int>(doc, "tracks", path);
+  r.dropped_inconsistent_tracks = doc.value("dropped_inconsistent_tracks", 0);
+  r.global_adjustments = doc.value("global_adjustments", 0);
+  r.registered = Field<int>(doc, "registered", path);
+  for (const auto& im : Field<nlohmann::json>(doc, "images", path)) {
+    ReconstructionRecord::Image image;
+    image.name = Field<std::string>(im, "name", path);
+    image.registered = Field<bool>(im, "registered", path);
+    image.why_not = im.value("why_not", "");
+    r.images.push_back(image);
+  }
+  r.options = doc.value("options", nlohmann::json());
+  return r;
+}
+
+MatchRecord LoadMatchRecord(const PipelineOptions& o) {
+  const fs::path path = o.workspace / "matches.json";
+  return MatchRecordFromJson(ReadJson(path, "match"), path.string());
+}
+
+ReconstructionRecord LoadReconstructionRecord(const PipelineOptions& o) {
+  const fs::path path = o.workspace / "reconstruction.json";
+  return ReconstructionRecordFromJson(ReadJson(path, "reconstruct"), path.string());
+}
+
 nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
   const GeoreferenceOptions& g = o.georef;
   std::string refine = g.auto_refine ? "auto" : ToString(g.bundle.refine_intrinsics);

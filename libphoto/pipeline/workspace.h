@@ -33,6 +33,14 @@ std::string ContentHash(const std::filesystem::path& path);
 // The options and inputs a stage's product depends on, as recorded in it:
 // a stage whose recorded options differ from these reruns.
 nlohmann::json IngestFingerprint(const PipelineOptions& o);
+// The feature options (features/options.json): changed, every image's
+// features are extracted again.
+nlohmann::json FeatureFingerprint(const PipelineOptions& o);
+// The match options and the features they matched (matches.json "options").
+nlohmann::json MatchFingerprint(const PipelineOptions& o);
+// The mapper options and the matches it reconstructed from
+// (reconstruction.json "options").
+nlohmann::json ReconstructFingerprint(const PipelineOptions& o);
 nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o);
 nlohmann::json DenseFingerprint(const PipelineOptions& o);
 nlohmann::json OrthoFingerprint(const PipelineOptions& o);
@@ -44,6 +52,49 @@ nlohmann::json OrthoFingerprint(const PipelineOptions& o);
 nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options);
 // "" when equal, else "key: recorded -> now; ..." (only differing keys).
 std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now);
+
+// matches.json: the match stage's product besides matches.bin, typed.
+struct MatchRecord {
+  static constexpr int kSchemaVersion = 1;
+  std::string strategy;  // how candidate pairs were chosen
+  int candidate_pairs = 0;
+  int verified_pairs = 0;
+  struct Image {
+    std::string name;
+    int features = 0;
+    int verified_pairs = 0;
+    int verified_matches = 0;
+  };
+  std::vector<Image> images;  // every ingested image, in ingest order
+  nlohmann::json options;     // MatchFingerprint at the time
+};
+nlohmann::json ToJson(const MatchRecord& record);
+// Throws ParseError naming path and the field.
+MatchRecord MatchRecordFromJson(const nlohmann::json& doc, const std::string& path);
+
+// reconstruction.json: the reconstruct stage's record besides the model in
+// reconstruction/, typed.
+struct ReconstructionRecord {
+  static constexpr int kSchemaVersion = 1;
+  std::string initial_pair;
+  int tracks = 0;
+  int dropped_inconsistent_tracks = 0;
+  int global_adjustments = 0;
+  int registered = 0;
+  struct Image {
+    std::string name;
+    bool registered = false;
+    std::string why_not;  // when not registered
+  };
+  std::vector<Image> images;  // every ingested image, in ingest order
+  nlohmann::json options;     // ReconstructFingerprint at the time
+};
+nlohmann::json ToJson(const ReconstructionRecord& record);
+// Throws ParseError naming path and the field.
+ReconstructionRecord ReconstructionRecordFromJson(const nlohmann::json& doc, const std::string& path);
+// The typed records of a workspace (IoError naming the stage to run when missing).
+MatchRecord LoadMatchRecord(const PipelineOptions& o);
+ReconstructionRecord LoadReconstructionRecord(const PipelineOptions& o);
 
 struct IngestView {
   std::vector<std::string> names;

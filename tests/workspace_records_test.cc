@@ -1,0 +1,117 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The workspace's typed records: what a stage writes reads back the same, a
+// corrupt or foreign record is refused naming the file and the field, and the
+// fingerprints change exactly when an option that shapes the product does.
+#include "libphoto/pipeline/workspace.h"
+
+#include <gtest/gtest.h>
+
+#include "libphoto/base/error.h"
+
+namespace aerotri {
+namespace {
+
+TEST(WorkspaceRecords, MatchRecordRoundTripsAndRefusesCorruptFiles) {
+  MatchRecord r;
+  r.strategy = "gps neighbours (12)";
+  r.candidate_pairs = 40;
+  r.verified_pairs = 31;
+  r.images = {{"a.jpg", 900, 4, 1200}, {"b.jpg", 0, 0, 0}};
+  r.options = {{"ratio", 0.8}};
+  const nlohmann::json doc = ToJson(r);
+  EXPECT_EQ(doc.at("schema_version"), MatchRecord::kSchemaVersion);
+  const MatchRecord back = MatchRecordFromJson(doc, "matches.json");
+  EXPECT_EQ(back.strategy, r.strategy);
+  EXPECT_EQ(back.candidate_pairs, 40);
+  EXPECT_EQ(back.verified_pairs, 31);
+  ASSERT_EQ(back.images.size(), 2u);
+  EXPECT_EQ(back.images[0].name, "a.jpg");
+  EXPECT_EQ(back.images[0].verified_matches, 1200);
+  EXPECT_EQ(back.options, r.options);
+  EXPECT_EQ(ToJson(back), doc);
+
+  nlohmann::json missing = doc;
+  missing.erase("verified_pairs");
+  try {
+    MatchRecordFromJson(missing, "ws/matches.json");
+    FAIL() << "accepted";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(std::string(e.what()), "ws/matches.json: missing field 'verified_pairs'");
+  }
+  nlohmann::json wrong_type = doc;
+  wrong_type["images"][0]["features"] = "many";
+  EXPECT_THROW(MatchRecordFromJson(wrong_type, "ws/matches.json"), ParseError);
+  nlohmann::json future = doc;
+  future["schema_version"] = 99;
+  try {
+    MatchRecordFromJson(future, "ws/matches.json");
+    FAIL() << "accepted";
+  } catch (const ParseError& e) {
+    EXPECT_NE(std::string(e.what()).find("schema_version 99"), std::string::npos) << e.what();
+  }
+}
+
+TEST(WorkspaceRecords, ReconstructionRecordRoundTripsAndReadsUnversionedFiles) {
+  ReconstructionRecord r;
+  r.initial_pair = "a.jpg-b.jpg";
+  r.tracks = 5000;
+  r.registered = 1;
+  r.images = {{"a.jpg", true, ""}, {"c.jpg", false, "PnP: 3 inliers of 40, needs 15"}};
+  r.options = {{"min_pnp_inliers", 15}};
+  const nlohmann::json doc = ToJson(r);
+  EXPECT_FALSE(doc.at("images")[0].contains("why_not"));  // registered: nothing to say
+  const ReconstructionRecord back = ReconstructionRecordFromJson(doc, "reconstruction.json");
+  EXPECT_EQ(back.initial_pair, r.initial_pair);
+  EXPECT_EQ(back.tracks, 5000);
+  ASSERT_EQ(back.images.size(), 2u);
+  EXPECT_FALSE(back.images[1].registered);
+  EXPECT_EQ(back.images[1].why_not, r.images[1].why_not);
+  EXPECT_EQ(ToJson(back), doc);
+
+  // Written before records had a version (and options): read as version 1.
+  nlohmann::json old = doc;
+  old.erase("schema_version");
+  old.erase("options");
+  const ReconstructionRecord read = ReconstructionRecordFromJson(old, "reconstruction.json");
+  EXPECT_TRUE(read.options.is_null());
+  EXPECT_EQ(read.registered, 1);
+}
+
+TEST(WorkspaceRecords, FingerprintsFollowTheOptionsThatShapeEachProduct) {
+  PipelineOptions o;
+  o.workspace = "no_such_workspace";
+  const nlohmann::json features = FeatureFingerprint(o);
+  const nlohmann::json match = MatchFingerprint(o);
+  const nlohmann::json mapper = ReconstructFingerprint(o);
+
+  PipelineOptions other = o;
+  other.features.max_features = 4000;
+  EXPECT_NE(FeatureFingerprint(other), features);
+  EXPECT_EQ(MatchFingerprint(other), match);  // through the recorded features only
+
+  other = o;
+  other.matching.gps_neighbours = 20;
+  EXPECT_EQ(FeatureFingerprint(other), features);
+  EXPECT_NE(MatchFingerprint(other), match);
+  EXPECT_EQ(FingerprintChanges(match, MatchFingerprint(other)), "gps_neighbours: 12 -> 20");
+
+  other = o;
+  other.mapper.max_reprojection_px = 2.0;
+  EXPECT_EQ(MatchFingerprint(other), match);
+  EXPECT_NE(ReconstructFingerprint(other), mapper);
+
+  // Threads and progress shape nothing.
+  other = o;
+  other.num_threads = 1;
+  other.matching.num_threads = 1;
+  other.mapper.num_threads = 1;
+  EXPECT_EQ(FeatureFingerprint(other), features);
+  EXPECT_EQ(MatchFingerprint(other), match);
+  EXPECT_EQ(ReconstructFingerprint(other), mapper);
+
+  // An unrecorded product (a workspace from before fingerprints) reruns.
+  EXPECT_NE(FingerprintChanges(nlohmann::json(), match).find("unrecorded"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace aerotri
