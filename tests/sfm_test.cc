@@ -6,8 +6,10 @@
 
 #include <map>
 #include <random>
+#include <set>
 
 #include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/sfm/guided_matching.h"
 #include "libphoto/sfm/incremental_mapper.h"
 #include "libphoto/sfm/tracks.h"
 #include "libphoto/simulate/synthetic_survey.h"
@@ -51,6 +53,100 @@ TEST(Tracks, ATrackHoldingTwoFeaturesOfOneImageIsDroppedWhole) {
   EXPECT_EQ(t.track_of[0][0], -1);
   EXPECT_EQ(t.track_of[2][1], -1);
   EXPECT_EQ(t.track_of[0][2], t.track_of[2][2]);
+}
+
+// One nadir image of scattered ground points with distinctive descriptors,
+// plus clutter; a predicted pose off by a few metres and a degree.
+TEST(GuidedMatching, FindsThePointsThroughAPoseThatIsOffByAShift) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Camera camera = Camera::Create(CameraModelId::kPinhole, 1000.0, 1200, 900);
+  Pose truth;  // 80 m above the origin, looking down (x east, y south)
+  truth.cam_from_world = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+  truth.centre_in_world = {0.0, 0.0, 80.0};
+
+  ImageFeatures f;
+  f.width = 1200;
+  f.height = 900;
+  std::vector<cv::Mat> rows;
+  std::vector<GuidedPoint> points;
+  std::vector<int> feature_of_point;
+  auto add_keypoint = [&](const Eigen::Vector2d& xy, const cv::Mat& descriptor) {
+    Keypoint k;
+    k.x = static_cast<float>(xy.x());
+    k.y = static_cast<float>(xy.y());
+    f.keypoints.push_back(k);
+    rows.push_back(descriptor);
+  };
+  auto random_descriptor = [&]() {
+    cv::Mat d(1, 128, CV_8U);
+    for (int c = 0; c < 128; ++c) d.at<std::uint8_t>(c) = static_cast<std::uint8_t>(byte(rng));
+    return d;
+  };
+  for (int i = 0; i < 400; ++i) {
+    const Eigen::Vector3d x(60.0 * u(rng), 45.0 * u(rng), 2.0 * u(rng));
+    const Eigen::Vector2d xy = camera.ImageFromCamera(truth.CamFromWorld(x));
+    const cv::Mat d = random_descriptor();
+    cv::Mat d_float;
+    d.convertTo(d_float, CV_32F, 1.0 / 512.0);
+    points.push_back({i, x, d_float});
+    if (xy.x() < 0 || xy.y() < 0 || xy.x() > 1199 || xy.y() > 899) {
+      feature_of_point.push_back(-1);
+      continue;
+    }
+    feature_of_point.push_back(static_cast<int>(f.keypoints.size()));
+    cv::Mat seen = d.clone();  // the same texture seen again: a little noise
+    for (int c = 0; c < 128; c += 16) seen.at<std::uint8_t>(c) = static_cast<std::uint8_t>(byte(rng));
+    add_keypoint(xy + 0.5 * Eigen::Vector2d(g(rng), g(rng)), seen);
+  }
+  for (int i = 0; i < 600; ++i) {  // clutter: features of nothing in the model
+    add_keypoint(Eigen::Vector2d(600.0 + 599.0 * u(rng), 450.0 + 449.0 * u(rng)), random_descriptor());
+  }
+  cv::vconcat(rows, f.descriptors);
+
+  // GPS 3 m east and 2 m north off, heading 1 degree off.
+  Pose predicted = truth;
+  predicted.centre_in_world += Eigen::Vector3d(3.0, 2.0, 0.0);
+  predicted.cam_from_world =
+      Eigen::Quaterniond(Eigen::AngleAxisd(1.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ())) * truth.cam_from_world;
+
+  const GuidedMatcher matcher(f, camera, 250.0);
+  const Eigen::Vector2d shift = matcher.VoteShift(predicted, points);
+  // A prediction 3 m east puts every point 3 m * f / H = 37.5 px west of
+  // where it is seen: the shift (seen - predicted) is +37.5 px in x; 2 m
+  // north, -25 px in y (y points south). The heading adds up to 13 px at
+  // the corners; the vote's bins are 8 px.
+  EXPECT_NEAR(shift.x(), 37.5, 12.0);
+  EXPECT_NEAR(shift.y(), -25.0, 12.0);
+
+  int right = 0, wrong = 0, visible = 0;
+  for (int id : feature_of_point) visible += id >= 0;
+  for (const GuidedMatch& m : matcher.Match(predicted, shift, 40.0, points)) {
+    (feature_of_point[m.point] == m.feature ? right : wrong) += 1;
+  }
+  EXPECT_GT(right, 0.85 * visible);
+  // Points out of view can only meet clutter; the ratio test lets a few
+  // through, for PnP's RANSAC to reject.
+  EXPECT_LT(wrong, 0.05 * right);
+
+  // Without the shift, the 40 px window misses most of them.
+  int unshifted = 0;
+  for (const GuidedMatch& m : matcher.Match(predicted, Eigen::Vector2d::Zero(), 40.0, points)) {
+    unshifted += feature_of_point[m.point] == m.feature;
+  }
+  EXPECT_LT(unshifted, right);
+
+  // From the true pose, a tight window finds them all; each keypoint once.
+  const std::vector<GuidedMatch> exact = matcher.Match(truth, Eigen::Vector2d::Zero(), 4.0, points);
+  std::set<int> features_used;
+  right = 0;
+  for (const GuidedMatch& m : exact) {
+    right += feature_of_point[m.point] == m.feature;
+    EXPECT_TRUE(features_used.insert(m.feature).second);
+  }
+  EXPECT_GE(right, visible - 2);
 }
 
 // Features and verified matches of a synthetic survey: one keypoint per

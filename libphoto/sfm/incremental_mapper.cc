@@ -10,6 +10,7 @@
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/base/error.h"
 #include "georef/similarity.h"
+#include "libphoto/sfm/guided_matching.h"
 #include "libphoto/sfm/tracks.h"
 #include "libphoto/geometry/triangulation.h"
 
@@ -448,126 +449,38 @@ class Mapper {
     pose.cam_from_world = *attitude;
     pose.centre_in_world = model_from_gps.Apply(*gps_[image]);
     const Camera& camera = model_.cameras[model_.images[image].camera];
-    const ImageFeatures& f = features_[image];
-    const cv::Mat desc = f.FloatDescriptors();
-    // Keypoints bucketed on a grid for radius queries.
-    constexpr double kCell = 32.0;
-    const int gw = static_cast<int>(f.width / kCell) + 1, gh = static_cast<int>(f.height / kCell) + 1;
-    std::vector<std::vector<int>> grid(static_cast<size_t>(gw) * gh);
-    for (size_t k = 0; k < f.keypoints.size(); ++k) {
-      const int cx = std::clamp(static_cast<int>(f.keypoints[k].x / kCell), 0, gw - 1);
-      const int cy = std::clamp(static_cast<int>(f.keypoints[k].y / kCell), 0, gh - 1);
-      grid[static_cast<size_t>(cy) * gw + cx].push_back(static_cast<int>(k));
-    }
-    // A descriptor per live track: that of its first registered element.
-    std::vector<std::pair<int, int>> reference(model_.points.size(), {-1, -1});
+    // The model's points, each with the descriptor of its track's first
+    // registered element.
+    std::vector<GuidedPoint> points;
+    std::map<int, cv::Mat> descriptors;  // per reference image, decoded once
     for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
       const int p = point_of_track_[t];
       if (p < 0) continue;
       for (const TrackElement& e : tracks_.tracks[t]) {
-        if (model_.images[e.image].registered) {
-          reference[p] = {e.image, e.feature};
-          break;
-        }
+        if (!model_.images[e.image].registered) continue;
+        auto it = descriptors.find(e.image);
+        if (it == descriptors.end()) it = descriptors.emplace(e.image, features_[e.image].FloatDescriptors()).first;
+        points.push_back({p, model_.points[p].position, it->second.row(e.feature)});
+        break;
       }
     }
-    std::map<int, cv::Mat> ref_desc;
-    auto descriptor_of = [&](int img, int feat) {
-      auto it = ref_desc.find(img);
-      if (it == ref_desc.end()) it = ref_desc.emplace(img, features_[img].FloatDescriptors()).first;
-      return it->second.row(feat);
-    };
-    // Visible points and their predicted pixels.
-    struct Predicted {
-      int point;
-      Eigen::Vector2d xy;
-    };
-    std::vector<Predicted> visible;
-    const double search = options_.rescue_search_radius_px;
-    for (size_t p = 0; p < model_.points.size(); ++p) {
-      if (reference[p].first < 0) continue;
-      const Eigen::Vector3d pc = pose.CamFromWorld(model_.points[p].position);
-      if (pc.z() <= 0) continue;
-      const Eigen::Vector2d xy = camera.ImageFromCamera(pc);
-      if (xy.x() < -search || xy.y() < -search || xy.x() > f.width + search || xy.y() > f.height + search) continue;
-      visible.push_back({static_cast<int>(p), xy});
-    }
-    // Candidates of a predicted pixel within radius, best first: (distance², feature).
-    auto candidates = [&](const Eigen::Vector2d& xy, double radius, const cv::Mat& d) {
-      std::vector<std::pair<double, int>> out;
-      const int x0 = static_cast<int>(std::floor((xy.x() - radius) / kCell));
-      const int x1 = static_cast<int>(std::floor((xy.x() + radius) / kCell));
-      const int y0 = static_cast<int>(std::floor((xy.y() - radius) / kCell));
-      const int y1 = static_cast<int>(std::floor((xy.y() + radius) / kCell));
-      for (int cy = std::max(0, y0); cy <= std::min(gh - 1, y1); ++cy) {
-        for (int cx = std::max(0, x0); cx <= std::min(gw - 1, x1); ++cx) {
-          for (int k : grid[static_cast<size_t>(cy) * gw + cx]) {
-            const double dx = f.keypoints[k].x - xy.x(), dy = f.keypoints[k].y - xy.y();
-            if (dx * dx + dy * dy > radius * radius) continue;
-            out.push_back({cv::norm(desc.row(k), d, cv::NORM_L2SQR), k});
-          }
-        }
-      }
-      std::sort(out.begin(), out.end());
-      return out;
-    };
-    // Hough vote on the image offset between prediction and truth: GPS and
-    // attitude errors mostly shift the whole image.
-    Eigen::Vector2d offset = Eigen::Vector2d::Zero();
-    {
-      constexpr double kBin = 8.0;
-      const int nb = static_cast<int>(2 * search / kBin) + 1;
-      std::vector<float> votes(static_cast<size_t>(nb) * nb, 0.0f);
-      for (const Predicted& v : visible) {
-        const auto c = candidates(v.xy, search, descriptor_of(reference[v.point].first, reference[v.point].second));
-        for (size_t r = 0; r < c.size() && r < 2; ++r) {
-          const Keypoint& k = f.keypoints[c[r].second];
-          const int bx = static_cast<int>((k.x - v.xy.x() + search) / kBin);
-          const int by = static_cast<int>((k.y - v.xy.y() + search) / kBin);
-          if (bx >= 0 && by >= 0 && bx < nb && by < nb) votes[static_cast<size_t>(by) * nb + bx] += 1.0f;
-        }
-      }
-      float best = 0.0f;
-      for (int by = 1; by + 1 < nb; ++by) {
-        for (int bx = 1; bx + 1 < nb; ++bx) {
-          float sum = 0.0f;
-          for (int dy = -1; dy <= 1; ++dy) {
-            for (int dx = -1; dx <= 1; ++dx) sum += votes[static_cast<size_t>(by + dy) * nb + bx + dx];
-          }
-          if (sum > best) {
-            best = sum;
-            offset = Eigen::Vector2d((bx + 0.5) * kBin - search, (by + 0.5) * kBin - search);
-          }
-        }
-      }
-    }
+    std::sort(points.begin(), points.end(), [](const GuidedPoint& a, const GuidedPoint& b) { return a.id < b.id; });
+    const GuidedMatcher matcher(features_[image], camera, options_.rescue_search_radius_px);
+    const Eigen::Vector2d shift = matcher.VoteShift(pose, points);
     bool refined_pose = false;
     for (double radius : {40.0, 3.0 * options_.max_reprojection_px}) {
       std::vector<cv::Point3d> world;
       std::vector<cv::Point2d> rays;
       std::vector<std::pair<int, int>> pairs;  // (feature, point)
-      std::vector<char> used(f.keypoints.size(), 0);
-      for (const Predicted& v0 : visible) {
-        const int p = v0.point;
-        Eigen::Vector2d xy = v0.xy + offset;
-        if (refined_pose) {
-          const Eigen::Vector3d pc = pose.CamFromWorld(model_.points[p].position);
-          if (pc.z() <= 0) continue;
-          xy = camera.ImageFromCamera(pc);
-        }
-        const auto c = candidates(xy, radius, descriptor_of(reference[p].first, reference[p].second));
-        if (c.empty()) continue;
-        const double best = c[0].first;
-        const double second = c.size() > 1 ? c[1].first : 1e9;
-        const int best_k = c[0].second;
-        if (best_k < 0 || used[best_k] || !(best < 0.85 * 0.85 * second)) continue;
-        const auto n = Normalized(image, best_k);
+      // The first pass from the prediction shifted by the vote, the second
+      // from the pose the first found.
+      for (const GuidedMatch& m : matcher.Match(pose, refined_pose ? Eigen::Vector2d::Zero() : shift, radius, points)) {
+        const auto n = Normalized(image, m.feature);
         if (!n) continue;
-        used[best_k] = 1;
-        const Eigen::Vector3d& x = model_.points[p].position;
+        const Eigen::Vector3d& x = model_.points[m.point].position;
         world.emplace_back(x.x(), x.y(), x.z());
         rays.emplace_back(n->x(), n->y());
-        pairs.push_back({best_k, p});
+        pairs.push_back({m.feature, m.point});
       }
       ImageRegistration& st = status_[image];
       st.correspondences = static_cast<int>(world.size());
