@@ -9,6 +9,8 @@
 #include <random>
 
 #include "libphoto/adjust/georeferencing.h"
+#include "libphoto/adjust/gnss_drift.h"
+#include "libphoto/simulate/synthetic_survey.h"
 #include "libphoto/simulate/synthetic_georef.h"
 #include "tests/test_util.h"
 
@@ -94,6 +96,90 @@ TEST(ViewingGeometry, NadirGridYesOneLineNoObliqueNo) {
   const ViewingGeometry oblique = MeasureViewingGeometry(block(4, 35.0));
   EXPECT_FALSE(oblique.nadir) << oblique.reason;
   EXPECT_NEAR(oblique.axis_to_flight_plane_normal_deg, 35.0, 2.0);
+}
+
+// A camera's attitude as a gimbal states it: the optical axis's elevation and
+// the heading of the image's top, in ENU.
+TEST(GimbalAttitude, ElevationAndHeadingOfTheImagesTop) {
+  const auto pose_from = [](const Eigen::Vector3d& axis, const Eigen::Vector3d& top) {
+    // Rows of R (cam_from_world): the camera's x (right), y (down), z (axis) in the world.
+    const Eigen::Vector3d z = axis.normalized();
+    const Eigen::Vector3d y = (-top).normalized();
+    Eigen::Matrix3d r;
+    r.row(0) = y.cross(z).transpose();
+    r.row(1) = y.transpose();
+    r.row(2) = z.transpose();
+    Pose pose;
+    pose.cam_from_world = Eigen::Quaterniond(r);
+    return pose;
+  };
+  const double s = std::sqrt(0.5);
+  GimbalAttitude a = AttitudeOf(pose_from({0, 0, -1}, {0, 1, 0}));  // nadir, top north
+  EXPECT_NEAR(a.pitch_deg, -90.0, 1e-9);
+  EXPECT_NEAR(a.yaw_deg, 0.0, 1e-9);
+  a = AttitudeOf(pose_from({0, 0, -1}, {s, s, 0}));  // nadir, top north-east
+  EXPECT_NEAR(a.yaw_deg, 45.0, 1e-9);
+  // Looking east 30 degrees below the horizon, the top up and east.
+  const double c30 = std::cos(30.0 * M_PI / 180.0), s30 = std::sin(30.0 * M_PI / 180.0);
+  a = AttitudeOf(pose_from({c30, 0, -s30}, {s30, 0, c30}));
+  EXPECT_NEAR(a.pitch_deg, -30.0, 1e-9);
+  EXPECT_NEAR(a.yaw_deg, 90.0, 1e-9);
+  EXPECT_NEAR((GimbalAxis(a) - Eigen::Vector3d(c30, 0, -s30)).norm(), 0.0, 1e-12);
+  // Leaning 10 degrees back, behind a top that points north: pitch -100.
+  const double c10 = std::cos(10.0 * M_PI / 180.0), s10 = std::sin(10.0 * M_PI / 180.0);
+  a = AttitudeOf(pose_from({0, -s10, -c10}, {0, c10, -s10}));
+  EXPECT_NEAR(a.pitch_deg, -100.0, 1e-9);
+  EXPECT_NEAR(a.yaw_deg, 0.0, 1e-9);
+  EXPECT_NEAR((GimbalAxis(a) - Eigen::Vector3d(0, -s10, -c10)).norm(), 0.0, 1e-12);
+}
+
+TEST(GimbalAttitude, ALevelBlockAgreesWithItsGimbalsAndATiltedOneDoesNot) {
+  SyntheticSurveyOptions o;
+  o.seed = 12;
+  o.num_tie_points = 50;
+  SparseModel model = MakeSyntheticSurvey(o).truth;  // ENU, nadir with 2 degrees of jitter
+  std::mt19937 rng(12);
+  std::normal_distribution<double> g(0.0, 0.5);
+  std::map<std::string, GimbalAttitude> gimbal;
+  for (const Image& image : model.images) {
+    GimbalAttitude a = AttitudeOf(image.pose);
+    // A gimbal's report: half a degree of noise, and a compass 7 degrees off.
+    a.pitch_deg += g(rng);
+    a.yaw_deg += 7.0 + g(rng);
+    gimbal[image.name] = a;
+  }
+  GimbalAgreement agreement = CompareWithGimbal(model, gimbal);
+  EXPECT_EQ(agreement.images, static_cast<int>(model.images.size()));
+  EXPECT_LT(agreement.pitch_median_deg, 1.0);
+  EXPECT_GT(agreement.pitch_median_deg, 0.05);
+  EXPECT_LT(agreement.block_tilt_deg, 0.5);  // the jitter averages out
+  EXPECT_NEAR(agreement.yaw_bias_deg, -7.0, 0.5);
+  EXPECT_LT(agreement.yaw_median_deg, 1.0);
+
+  // The same block tilted 20 degrees across its east-west strips (as GPS
+  // heights drifting strip by strip would tilt it): the images' tops point
+  // north or south, so each photo's pitch shows it, and the block's axis.
+  const auto tilted = [&](const Eigen::Vector3d& about) {
+    SparseModel m = model;
+    const Eigen::Quaterniond tilt(Eigen::AngleAxisd(20.0 * M_PI / 180.0, about));
+    for (Image& image : m.images) {
+      image.pose.cam_from_world = image.pose.cam_from_world * tilt.conjugate();
+      image.pose.centre_in_world = tilt * image.pose.centre_in_world;
+    }
+    return m;
+  };
+  agreement = CompareWithGimbal(tilted(Eigen::Vector3d::UnitX()), gimbal);
+  EXPECT_NEAR(agreement.pitch_median_deg, 20.0, 2.5);
+  EXPECT_NEAR(agreement.block_tilt_deg, 20.0, 0.5);
+  EXPECT_FALSE(agreement.pitch_worst_image.empty());
+  // Tilted along the strips it is each photo's roll, which a gimbal's pitch
+  // and yaw do not state: the block's axis still shows it.
+  agreement = CompareWithGimbal(tilted(Eigen::Vector3d::UnitY()), gimbal);
+  EXPECT_LT(agreement.pitch_median_deg, 1.5);
+  EXPECT_NEAR(agreement.block_tilt_deg, 20.0, 0.5);
+
+  // Images without gimbal angles are not compared.
+  EXPECT_EQ(CompareWithGimbal(model, {}).images, 0);
 }
 
 TEST(DomeTest, RecoversAnInjectedDomeAndFindsNoneWhereThereIsNone) {

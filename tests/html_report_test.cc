@@ -100,7 +100,14 @@ TEST(HtmlReport, AttitudeDriftAndFootprintCoverage) {
                        {"viewing", "optical axes within 2.3 deg (median) of their mean"},
                        {"mean_axis_tilt_deg", 0.14},
                        {"median_tilt_deg", 2.3},
-                       {"max_tilt_deg", 6.7}}}};
+                       {"max_tilt_deg", 6.7},
+                       {"gimbal",
+                        {{"images", 18},
+                         {"block_tilt_deg", 0.6},
+                         {"pitch_difference_median_deg", 1.33},
+                         {"pitch_difference_max_deg", 2.8},
+                         {"yaw_difference_median_deg", 3.9},
+                         {"yaw_bias_deg", -6.07}}}}}};
   r["gps_drift"] = {{"note", "levelled by its mean optical axis"},
                     {"estimated", true},
                     {"nadir_prior", true},
@@ -118,6 +125,10 @@ TEST(HtmlReport, AttitudeDriftAndFootprintCoverage) {
   const std::string html = RenderHtmlReport(r, "");
   EXPECT_NE(html.find("<h2>Attitude and GNSS drift</h2>"), std::string::npos);
   EXPECT_NE(html.find("mean optical axis 0.1&deg;"), std::string::npos);
+  EXPECT_NE(html.find("gimbal angles (18 photos): the block's mean optical axis 0.6&deg; from theirs; per photo "
+                      "pitch differs by 1.3&deg; (median), 2.8&deg; at most; headings by 3.9&deg; (median) after a "
+                      "common compass offset of -6.1&deg;"),
+            std::string::npos);
   EXPECT_NE(html.find("<td>U</td><td>0.5805</td><td>0.5803</td><td>0.0083</td><td>101.0</td>"), std::string::npos)
       << html.substr(html.find("Attitude and GNSS"), 1500);
   EXPECT_NE(html.find("<p class='warn'>The DSM covers 84.6 % of the ground seen by two or more photos"),

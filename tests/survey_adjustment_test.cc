@@ -7,7 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <random>
 
+#include "libphoto/adjust/gnss_drift.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/simulate/survey_writer.h"
@@ -111,6 +113,48 @@ TEST_F(SurveyAdjustment, InputWarningsComeFirstAndTheCameraProductsAreWritten) {
   // The first camera's easting matches the report's.
   const std::string x = first.substr(first.find(',') + 1);
   EXPECT_NEAR(std::stod(x), report.cameras.front().position_crs.x(), 1e-3);
+}
+
+TEST_F(SurveyAdjustment, AdjustedAttitudesAreCheckedAgainstTheGimbals) {
+  // Gimbal angles from the truth with half a degree of noise: a level block
+  // agrees and nothing is said.
+  const SparseModel truth = ReadColmapText(dir_->path() / "truth" / "model");
+  std::mt19937 rng(3);
+  std::normal_distribution<double> g(0.0, 0.5);
+  SurveyAdjustmentInputs inputs = Inputs();
+  for (const Image& image : truth.images) {
+    GimbalAttitude a = AttitudeOf(image.pose);
+    a.pitch_deg += g(rng);
+    a.yaw_deg += g(rng);
+    inputs.gimbal[image.name] = a;
+  }
+  SparseModel model = Model();
+  GeoreferenceReport report = AdjustSurvey(&model, inputs, GeoreferenceOptions());
+  EXPECT_EQ(report.gimbal.images, static_cast<int>(truth.images.size()));
+  EXPECT_LT(report.gimbal.pitch_median_deg, 1.0);
+  EXPECT_LT(report.gimbal.yaw_median_deg, 1.5);
+  for (const Finding& f : report.findings) EXPECT_NE(f.code, "GIMBAL_ATTITUDE_DISAGREES") << f.message;
+
+  // Gimbals that say the whole block looks 15 degrees further north than the
+  // adjustment has it (tilted across the east-west strips, as GPS heights
+  // drifting strip by strip would tilt it): a contradiction, and an error.
+  // (The images' tops point north or south: the tilt is their gimbals' pitch.)
+  const Eigen::Quaterniond tilt(Eigen::AngleAxisd(15.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()));
+  for (const Image& image : truth.images) {
+    Pose tilted = image.pose;
+    tilted.cam_from_world = image.pose.cam_from_world * tilt.conjugate();
+    inputs.gimbal[image.name] = AttitudeOf(tilted);
+  }
+  model = Model();
+  report = AdjustSurvey(&model, inputs, GeoreferenceOptions());
+  EXPECT_NEAR(report.gimbal.pitch_median_deg, 15.0, 2.0);
+  EXPECT_NEAR(report.gimbal.block_tilt_deg, 15.0, 1.0);
+  bool error = false;
+  for (const Finding& f : report.findings) {
+    error |= f.code == "GIMBAL_ATTITUDE_DISAGREES" && f.severity == Severity::kError;
+  }
+  EXPECT_TRUE(error);
+  EXPECT_EQ(SurveyStatus(report.findings), "failed");
 }
 
 TEST_F(SurveyAdjustment, AControlFileInAnUnknownCrsIsRefusedBeforeAnyAdjustment) {

@@ -14,6 +14,7 @@
 #include "libphoto/base/error.h"
 #include "libphoto/pipeline/survey_adjustment.h"
 #include "libphoto/ingest/gps_sources.h"
+#include "libphoto/ingest/image_metadata.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/report/report_json.h"
 #include "tools/commands.h"
@@ -120,6 +121,20 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
     ctx.Info("EXIF GPS: " + std::to_string(gps.size()) + " of " +
              std::to_string(model.images.size()) + " images");
   }
+  // Gimbal angles (DJI XMP), to check the adjusted attitudes against.
+  std::map<std::string, GimbalAttitude> gimbal;
+  if (!args.images_dir.empty()) {
+    for (const Image& image : model.images) {
+      const fs::path path = fs::path(args.images_dir) / image.name;
+      if (!fs::exists(path)) continue;  // GpsFromImages has said so
+      try {
+        const ImageMetadata m = ReadImageMetadata(path);
+        if (m.gimbal_pitch_deg && m.gimbal_yaw_deg) gimbal[image.name] = {*m.gimbal_pitch_deg, *m.gimbal_yaw_deg};
+      } catch (const Error&) {
+        // unreadable: GpsFromImages has said so
+      }
+    }
+  }
   if (!args.gps_csv.empty()) {
     const auto csv = ReadGpsFile(args.gps_csv, reference, args.gps_sigma_h_m, args.gps_sigma_v_m);
     for (const auto& [name, fix] : csv) gps[name] = fix;
@@ -132,6 +147,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   inputs.gcp_pixel_origin = args.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
   inputs.camera_file = args.policy.camera_file;
   inputs.input_warnings = warnings;
+  inputs.gimbal = std::move(gimbal);
   const GeoreferenceReport report = AdjustSurvey(&model, inputs, options);
   for (const Finding& f : report.findings) {
     ctx.Warn((f.severity == Severity::kError ? "error " : "") + f.code + ": " + f.message);

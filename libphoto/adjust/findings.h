@@ -29,6 +29,8 @@
 //   GPS_DRIFT                  warning  GPS positions trend in time: a drift per flight estimated
 //   GPS_TILT_REJECTED          warning  GPS heights would tilt a nadir block; levelled by its attitude
 //   CAMERA_ATTITUDE_IMPLAUSIBLE error   a nadir block adjusted more than 10 deg off vertical
+//   GIMBAL_ATTITUDE_DISAGREES  warning  the block's mean optical axis more than 3 deg from its gimbals';
+//                              error    more than 10 deg
 //   PRECISION_NOT_COMPUTED     warning  posterior sigmas and the w-test are missing (why)
 //   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model

@@ -516,7 +516,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
                             "the model and no control points (give --gcp, or images with "
                             "EXIF GPS, or --gps-csv)");
     }
-    report.enu_origin = {lat / n, lon / n, h / n};
+    report.enu_origin = options.enu_origin ? *options.enu_origin : Geodetic{lat / n, lon / n, h / n};
     // A local frame adjusts on its stand-in's own tangent plane: exactly the
     // file's Cartesian coordinates.
     if (local) report.enu_origin = Crs::LocalGeodeticOrigin();

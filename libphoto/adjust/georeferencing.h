@@ -63,6 +63,10 @@ BundleOptions SurveyBundleOptions();
 
 struct GeoreferenceOptions {
   std::string output_crs;       // empty: the control file's CRS, else UTM
+  // The adjustment frame's (ENU) origin, e.g. the workspace's; none: the
+  // mean GPS of the model's registered images, else the mean control point.
+  // Not used in a LOCAL frame, which adjusts in the file's own coordinates.
+  std::optional<Geodetic> enu_origin;
   double gcp_sigma_h_m = 0.02;  // when the file gives none
   double gcp_sigma_v_m = 0.03;
   // Helmert inlier threshold (m); 0 picks 5x the largest prior sigma, at
@@ -221,6 +225,9 @@ struct GeoreferenceReport {
   // and its cameras' tilt from nadir after the adjustment.
   ViewingGeometry viewing;
   TiltStats tilt;
+  // The adjusted attitudes against the photos' gimbal angles (when the
+  // caller had them: AdjustSurvey); images == 0 when none.
+  GimbalAgreement gimbal;
   GpsDriftReport gps_drift;
   // The control's scatter about the model: the initial similarity over every
   // control point consistent with the others, per axis, against the file's

@@ -144,6 +144,69 @@ TiltStats MeasureTilt(const SparseModel& model) {
   return t;
 }
 
+GimbalAttitude AttitudeOf(const Pose& pose) {
+  const Eigen::Vector3d axis = OpticalAxisInWorld(pose);
+  // The image's top: −y of the camera frame, in the world.
+  const Eigen::Vector3d top = pose.cam_from_world.conjugate() * Eigen::Vector3d(0.0, -1.0, 0.0);
+  GimbalAttitude a;
+  a.yaw_deg = std::atan2(top.x(), top.y()) * 180.0 / M_PI;
+  // The elevation in the vertical plane of the heading, as a gimbal without
+  // roll turns: below -90 when the axis leans back, behind the image's top
+  // (GimbalAxis is its inverse); a sideways lean (roll) is not in it.
+  const Eigen::Vector2d forward = top.head<2>().norm() > 0.0 ? top.head<2>().normalized() : Eigen::Vector2d(0, 1);
+  a.pitch_deg = std::atan2(axis.z(), axis.head<2>().dot(forward)) * 180.0 / M_PI;
+  if (a.pitch_deg > 90.0) a.pitch_deg -= 360.0;  // keep (-270, 90]: looking down is about -90
+  return a;
+}
+
+Eigen::Vector3d GimbalAxis(const GimbalAttitude& a) {
+  const double p = a.pitch_deg * M_PI / 180.0, y = a.yaw_deg * M_PI / 180.0;
+  return {std::cos(p) * std::sin(y), std::cos(p) * std::cos(y), std::sin(p)};
+}
+
+GimbalAgreement CompareWithGimbal(const SparseModel& model, const std::map<std::string, GimbalAttitude>& gimbal) {
+  GimbalAgreement g;
+  std::vector<double> pitch, yaw_signed;
+  Eigen::Vector3d adjusted_sum = Eigen::Vector3d::Zero(), gimbal_sum = Eigen::Vector3d::Zero();
+  const auto wrap = [](double deg) { return std::remainder(deg, 360.0); };
+  for (const Image& image : model.images) {
+    if (!image.registered) continue;
+    const auto it = gimbal.find(image.name);
+    if (it == gimbal.end()) continue;
+    const GimbalAttitude adjusted = AttitudeOf(image.pose);
+    adjusted_sum += OpticalAxisInWorld(image.pose);
+    gimbal_sum += GimbalAxis(it->second);
+    const double dp = std::abs(adjusted.pitch_deg - it->second.pitch_deg);
+    pitch.push_back(dp);
+    if (dp > g.pitch_max_deg) {
+      g.pitch_max_deg = dp;
+      g.pitch_worst_image = image.name;
+    }
+    if (it->second.pitch_deg < -45.0) yaw_signed.push_back(wrap(adjusted.yaw_deg - it->second.yaw_deg));
+  }
+  g.images = static_cast<int>(pitch.size());
+  if (pitch.empty()) return g;
+  g.pitch_median_deg = Median(pitch);
+  if (adjusted_sum.norm() > 0.0 && gimbal_sum.norm() > 0.0) {
+    g.block_tilt_deg = AngleDeg(adjusted_sum.normalized(), gimbal_sum.normalized());
+  }
+  g.yaw_images = static_cast<int>(yaw_signed.size());
+  if (!yaw_signed.empty()) {
+    // The circular mean: differences near ±180° must not average to 0.
+    double s = 0.0, c = 0.0;
+    for (double d : yaw_signed) {
+      s += std::sin(d * M_PI / 180.0);
+      c += std::cos(d * M_PI / 180.0);
+    }
+    g.yaw_bias_deg = std::atan2(s, c) * 180.0 / M_PI;
+    std::vector<double> yaw;
+    for (double d : yaw_signed) yaw.push_back(std::abs(wrap(d - g.yaw_bias_deg)));
+    g.yaw_median_deg = Median(yaw);
+    g.yaw_max_deg = *std::max_element(yaw.begin(), yaw.end());
+  }
+  return g;
+}
+
 std::optional<SimilarityFit> FitLevelledSimilarity(const std::vector<Eigen::Vector3d>& from,
                                                    const std::vector<Eigen::Vector3d>& to,
                                                    const Eigen::Vector3d& down_in_model, double threshold_m) {

@@ -22,6 +22,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -73,6 +74,43 @@ struct TiltStats {
   double max_deg = 0.0;
 };
 TiltStats MeasureTilt(const SparseModel& model);
+
+// A camera's attitude as its gimbal reports it (DJI XMP drone-dji:
+// GimbalPitchDegree / GimbalYawDegree): pitch the elevation of the optical
+// axis (−90 straight down, 0 level, below −90 leaning back, behind the
+// image's top), yaw the heading of the image's top (degrees clockwise from
+// north). Without roll: a sideways lean is not expressed. Independent of the photos and the GPS
+// positions: what tells a tilted block from a level one on real flights.
+struct GimbalAttitude {
+  double pitch_deg = -90.0;
+  double yaw_deg = 0.0;
+};
+
+// The adjusted cameras (model in an ENU frame: x east, y north, z up)
+// against their gimbals. Pitch: |adjusted − gimbal| elevation of the optical
+// axis. Yaw: the heading of the image's top, after removing the mean
+// signed difference (a compass or declination bias common to the flight);
+// only for images looking down more than 45°, where the top's heading is
+// well defined whatever the roll.
+struct GimbalAgreement {
+  int images = 0;                 // registered images with gimbal angles
+  // The angle between the mean adjusted optical axis and the mean axis the
+  // gimbals state: the block's tilt against them, which each photo's own
+  // jitter (a degree or two) averages out of.
+  double block_tilt_deg = 0.0;
+  double pitch_median_deg = 0.0;
+  double pitch_max_deg = 0.0;
+  std::string pitch_worst_image;
+  int yaw_images = 0;
+  double yaw_bias_deg = 0.0;      // circular mean of adjusted − gimbal heading
+  double yaw_median_deg = 0.0;    // |difference − bias|
+  double yaw_max_deg = 0.0;
+};
+// The adjusted elevation and heading of one pose (ENU), as a gimbal reports them.
+GimbalAttitude AttitudeOf(const Pose& pose_enu);
+// The optical axis (ENU, unit) a gimbal attitude states.
+Eigen::Vector3d GimbalAxis(const GimbalAttitude& a);
+GimbalAgreement CompareWithGimbal(const SparseModel& model_enu, const std::map<std::string, GimbalAttitude>& gimbal);
 
 // Similarity from the model frame to ENU that turns down_in_model (the mean
 // optical axis) to −U and fits the rest to the GPS horizontally only: scale,

@@ -141,11 +141,11 @@ bool RunMatchStage(const PipelineOptions& o) {
   const std::vector<ImageFeatures> features = LoadFeatures(o, &ingest);
   // Horizontal GPS positions in a local frame for neighbourhoods.
   std::vector<std::optional<Eigen::Vector2d>> gps(ingest.names.size());
-  std::optional<LocalFrame> frame;
-  for (size_t i = 0; i < gps.size(); ++i) {
-    if (!ingest.gps[i] || !ingest.usable[i]) continue;
-    if (!frame) frame.emplace(ingest.gps[i]->position);
-    gps[i] = frame->EnuFromGeodetic(ingest.gps[i]->position).head<2>();
+  if (const auto origin = ingest.EnuOrigin()) {
+    const LocalFrame frame(*origin);
+    for (size_t i = 0; i < gps.size(); ++i) {
+      if (ingest.gps[i] && ingest.usable[i]) gps[i] = frame.EnuFromGeodetic(ingest.gps[i]->position).head<2>();
+    }
   }
   // Unusable images take no part: give them a position so they do not force
   // exhaustive matching, and drop their pairs.
@@ -219,11 +219,11 @@ bool RunReconstructStage(const PipelineOptions& o) {
   mo.progress = StageProgress(o, "reconstruct");
   mo.focal_prior_px = ingest.focal_prior_px;
   std::vector<std::optional<Eigen::Vector3d>> gps(ingest.names.size());
-  std::optional<LocalFrame> frame;
-  for (size_t i = 0; i < gps.size(); ++i) {
-    if (!ingest.gps[i]) continue;
-    if (!frame) frame.emplace(ingest.gps[i]->position);
-    gps[i] = frame->EnuFromGeodetic(ingest.gps[i]->position);
+  if (const auto origin = ingest.EnuOrigin()) {
+    const LocalFrame frame(*origin);
+    for (size_t i = 0; i < gps.size(); ++i) {
+      if (ingest.gps[i]) gps[i] = frame.EnuFromGeodetic(ingest.gps[i]->position);
+    }
   }
   MapperResult result = ReconstructIncremental(ingest.names, camera_of_image, ingest.cameras, features,
                                                matches, mo, gps);
@@ -325,6 +325,10 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   for (size_t i = 0; i < ingest.names.size(); ++i) {
     if (ingest.gps[i]) inputs.gps[ingest.names[i]] = *ingest.gps[i];
     inputs.full_from_model[ingest.names[i]] = ingest.scale[i];
+    const IngestedImage& im = ingest.record.images[i];
+    if (im.gimbal_pitch_deg && im.gimbal_yaw_deg) {
+      inputs.gimbal[im.name] = {*im.gimbal_pitch_deg, *im.gimbal_yaw_deg};
+    }
   }
   inputs.gcp = o.gcp;
   inputs.checkpoints = o.checkpoints;
@@ -337,6 +341,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     GeoreferenceOptions go = o.georef;
     go.bundle.num_threads = o.num_threads;
     go.bundle.focal_prior_px = ingest.focal_prior_px;
+    go.enu_origin = ingest.EnuOrigin();  // the workspace's one origin
     go.progress = StageProgress(o, "georeference");
     const GeoreferenceReport georef = AdjustSurvey(&model, inputs, go);
     for (const Finding& f : georef.findings) {

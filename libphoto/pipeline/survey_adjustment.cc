@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/pipeline/survey_adjustment.h"
 
+#include <cstdio>
 #include <iomanip>
 #include <limits>
 #include <optional>
@@ -17,6 +18,11 @@ namespace aerotri {
 namespace fs = std::filesystem;
 
 namespace {
+
+// A gimbal holds its pitch to about a degree, and a photo's own jitter of one
+// or two averages out of the block's mean axis.
+constexpr double kGimbalPitchWarningDeg = 3.0;
+constexpr double kGimbalPitchErrorDeg = 10.0;
 
 double FullFromModel(const SurveyAdjustmentInputs& inputs, const std::string& image) {
   const auto it = inputs.full_from_model.find(image);
@@ -54,6 +60,21 @@ GeoreferenceReport AdjustSurvey(SparseModel* model, const SurveyAdjustmentInputs
   }
   GeoreferenceReport report = GeoreferenceAndAdjust(model, inputs.gps, control ? &*control : nullptr,
                                                     checks ? &*checks : nullptr, options);
+  if (!inputs.gimbal.empty() && !(report.output_crs && report.output_crs->IsLocal())) {
+    report.gimbal = CompareWithGimbal(*model, inputs.gimbal);
+    const GimbalAgreement& g = report.gimbal;
+    if (g.images > 0 && g.block_tilt_deg > kGimbalPitchWarningDeg) {
+      char message[480];
+      std::snprintf(message, sizeof message,
+                    "the adjusted block looks %.1f deg away from where its gimbals point (mean optical axes of %d "
+                    "photos; per photo median %.1f deg, %.1f deg at %s): the block is tilted (GPS heights "
+                    "drifting or wrong, or control too weak to level it); see report.json adjustment.attitude",
+                    g.block_tilt_deg, g.images, g.pitch_median_deg, g.pitch_max_deg, g.pitch_worst_image.c_str());
+      report.findings.push_back(g.block_tilt_deg > kGimbalPitchErrorDeg
+                                    ? Finding::Error("GIMBAL_ATTITUDE_DISAGREES", message)
+                                    : Finding::Warning("GIMBAL_ATTITUDE_DISAGREES", message));
+    }
+  }
   for (auto w = inputs.input_warnings.rbegin(); w != inputs.input_warnings.rend(); ++w) {
     report.findings.insert(report.findings.begin(), Finding::Warning("INPUT", *w));
   }

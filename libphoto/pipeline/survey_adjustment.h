@@ -32,12 +32,19 @@ struct SurveyAdjustmentInputs {
   // Problems met reading the inputs (EXIF, GPS files): INPUT warnings, first
   // among the report's findings.
   std::vector<std::string> input_warnings;
+  // Gimbal angles by image name (DJI XMP), to check the adjusted attitudes
+  // against: GeoreferenceReport::gimbal, GIMBAL_ATTITUDE_DISAGREES.
+  std::map<std::string, GimbalAttitude> gimbal;
 };
 
 // Reads the control and check files (their CRS checked before anything is
 // adjusted) and the camera file, then georeferences and adjusts model in
-// place (GeoreferenceAndAdjust). Throws the inputs' own errors, naming file
-// and line.
+// place (GeoreferenceAndAdjust), and compares the adjusted attitudes with
+// the gimbal angles given: a block whose mean optical axis is more than 3°
+// from the one its gimbals state is a warning, more than 10° an error (a tilted survey, e.g.
+// from drifting GPS heights, looks right by every other figure). Not in a
+// LOCAL frame, whose axes need not be east, north, up. Throws the inputs'
+// own errors, naming file and line.
 GeoreferenceReport AdjustSurvey(SparseModel* model, const SurveyAdjustmentInputs& inputs,
                                 GeoreferenceOptions options);
 

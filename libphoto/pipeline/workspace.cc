@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <mutex>
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
@@ -78,9 +80,41 @@ std::filesystem::path IngestView::ImagesDir(const PipelineOptions& o) const {
   return record.images_dir.empty() ? o.images_dir : record.images_dir;
 }
 
+std::optional<Geodetic> IngestView::EnuOrigin() const {
+  Geodetic mean{0.0, 0.0, 0.0};
+  int n = 0;
+  for (size_t i = 0; i < gps.size(); ++i) {
+    if (!gps[i] || !usable[i]) continue;
+    mean.lat_deg += gps[i]->position.lat_deg;
+    mean.lon_deg += gps[i]->position.lon_deg;
+    mean.h_m += gps[i]->position.h_m;
+    ++n;
+  }
+  if (n == 0) return std::nullopt;
+  return Geodetic{mean.lat_deg / n, mean.lon_deg / n, mean.h_m / n};
+}
+
 IngestView LoadIngest(const PipelineOptions& o) {
-  IngestView v;
   const fs::path path = o.workspace / "ingest.json";
+  // Read once per process while the file is unchanged (its size and
+  // modification time): every stage of a run asks for it.
+  struct Cached {
+    std::uintmax_t size = 0;
+    fs::file_time_type time;
+    IngestView view;
+  };
+  static std::mutex mutex;
+  static std::map<std::string, Cached> cache;
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(path, ec);
+  const fs::file_time_type time = ec ? fs::file_time_type() : fs::last_write_time(path, ec);
+  const std::string key = fs::absolute(path).lexically_normal().string();
+  if (!ec) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const auto it = cache.find(key);
+    if (it != cache.end() && it->second.size == size && it->second.time == time) return it->second.view;
+  }
+  IngestView v;
   v.record = IngestRecordFromJson(ReadJson(path, "ingest"), path.string());
   for (const CameraGroup& g : v.record.groups) {
     v.cameras.push_back(g.camera);
@@ -92,6 +126,10 @@ IngestView LoadIngest(const PipelineOptions& o) {
     v.scale.push_back(im.scale);
     v.group.push_back(im.group);
     v.gps.push_back(im.gps);
+  }
+  if (!ec) {
+    std::lock_guard<std::mutex> lock(mutex);
+    cache[key] = {size, time, v};
   }
   return v;
 }

@@ -109,6 +109,9 @@ struct IngestView {
   IngestRecord record;
   // The photo folder ingest read (what later stages decode), else options'.
   std::filesystem::path ImagesDir(const PipelineOptions& o) const;
+  // The workspace's one ENU origin: the mean GPS position of the usable
+  // images (what match, reconstruct and georeference work in); none without GPS.
+  std::optional<Geodetic> EnuOrigin() const;
 };
 
 // The ingest stage's options, from the pipeline's.

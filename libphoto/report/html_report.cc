@@ -639,6 +639,14 @@ std::string AttitudeAndDrift(const json& r) {
   h << "<h2>Attitude and GNSS drift</h2><p>Viewing geometry: " << Escape(Text(att, "viewing", "–"))
     << ". Adjusted tilt from nadir: mean optical axis " << Num(Get(att, "mean_axis_tilt_deg"), 1) << "&deg;, median photo "
     << Num(Get(att, "median_tilt_deg"), 1) << "&deg;, largest " << Num(Get(att, "max_tilt_deg"), 1) << "&deg;.</p>";
+  if (att.contains("gimbal")) {
+    const json& g = att["gimbal"];
+    h << "<p>Against the photos' gimbal angles (" << g.value("images", 0) << " photos): the block's mean optical axis "
+      << Num(Get(g, "block_tilt_deg"), 1) << "&deg; from theirs; per photo pitch differs by "
+      << Num(Get(g, "pitch_difference_median_deg"), 1) << "&deg; (median), " << Num(Get(g, "pitch_difference_max_deg"), 1)
+      << "&deg; at most; headings by " << Num(Get(g, "yaw_difference_median_deg"), 1)
+      << "&deg; (median) after a common compass offset of " << Num(Get(g, "yaw_bias_deg"), 1) << "&deg;.</p>";
+  }
   h << "<p>GNSS drift: " << Escape(Text(d, "note", "–")) << ".";
   if (d.value("nadir_prior", false)) {
     h << " Tilt held by a nadir attitude prior of " << Num(Get(d, "nadir_prior_sigma_deg_per_photo"), 0)

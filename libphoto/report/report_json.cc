@@ -366,6 +366,18 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                                    {"mean_axis_tilt_deg", r.tilt.mean_axis_tilt_deg},
                                    {"median_tilt_deg", r.tilt.median_deg},
                                    {"max_tilt_deg", r.tilt.max_deg}};
+    if (r.gimbal.images > 0) {
+      const GimbalAgreement& g = r.gimbal;
+      j["adjustment"]["attitude"]["gimbal"] = {{"images", g.images},
+                                               {"block_tilt_deg", g.block_tilt_deg},
+                                               {"pitch_difference_median_deg", g.pitch_median_deg},
+                                               {"pitch_difference_max_deg", g.pitch_max_deg},
+                                               {"pitch_worst_image", g.pitch_worst_image},
+                                               {"yaw_images", g.yaw_images},
+                                               {"yaw_bias_deg", g.yaw_bias_deg},
+                                               {"yaw_difference_median_deg", g.yaw_median_deg},
+                                               {"yaw_difference_max_deg", g.yaw_max_deg}};
+    }
   }
   const BlockGeometry& g = r.geometry;
   j["adjustment"]["block_geometry"] = {{"images", g.images},
