@@ -9,6 +9,7 @@
 #include <set>
 
 #include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/geometry/pose_estimation.h"
 #include "libphoto/sfm/guided_matching.h"
 #include "libphoto/sfm/incremental_mapper.h"
 #include "libphoto/sfm/tracks.h"
@@ -147,6 +148,58 @@ TEST(GuidedMatching, FindsThePointsThroughAPoseThatIsOffByAShift) {
     EXPECT_TRUE(features_used.insert(m.feature).second);
   }
   EXPECT_GE(right, visible - 2);
+}
+
+// The pose estimators on exact and noisy normalised coordinates of a known
+// scene: relative pose to the truth's rotation and baseline direction,
+// absolute pose to the truth, outliers set aside.
+TEST(PoseEstimation, RelativeAndAbsolutePosesOfAKnownScene) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Pose b;  // 10 m to the side, turned 5 degrees
+  b.cam_from_world = Eigen::Quaterniond(Eigen::AngleAxisd(5.0 * M_PI / 180.0, Eigen::Vector3d(0.2, 1.0, 0.1).normalized()));
+  b.centre_in_world = {10.0, 1.0, 0.5};
+  const double noise = 0.5 / 1000.0;  // half a pixel at f = 1000 px
+  std::vector<Eigen::Vector3d> world;
+  std::vector<Eigen::Vector2d> in_a, in_b;
+  for (int k = 0; k < 300; ++k) {
+    const Eigen::Vector3d x(30.0 * u(rng), 20.0 * u(rng), 60.0 + 10.0 * u(rng));
+    const Eigen::Vector3d xb = b.CamFromWorld(x);
+    world.push_back(x);
+    in_a.push_back(x.head<2>() / x.z() + noise * Eigen::Vector2d(g(rng), g(rng)));
+    in_b.push_back(xb.head<2>() / xb.z() + noise * Eigen::Vector2d(g(rng), g(rng)));
+  }
+  // A fifth of the matches wrong (the first and last 30 swapped).
+  for (int k = 0; k < 30; ++k) std::swap(in_b[k], in_b[299 - k]);
+
+  const auto relative = EstimateRelativePose(in_a, in_b, 2.0 / 1000.0);
+  ASSERT_TRUE(relative.has_value());
+  EXPECT_GT(relative->inliers, 220);
+  EXPECT_LE(relative->inliers, 242);  // the 60 swapped ones are not (a lucky one or two may be)
+  // Half a pixel on a 10 m baseline at 60 m: a few tenths of a degree.
+  const double rotation_error = relative->b.cam_from_world.angularDistance(b.cam_from_world) * 180.0 / M_PI;
+  EXPECT_LT(rotation_error, 0.6);
+  EXPECT_GT(rotation_error, 1e-3);
+  // The baseline's direction (its length is not observable).
+  const double direction_error =
+      std::acos(std::clamp(relative->b.centre_in_world.normalized().dot(b.centre_in_world.normalized()), -1.0, 1.0));
+  EXPECT_LT(direction_error * 180.0 / M_PI, 3.0);
+  EXPECT_NEAR(relative->b.centre_in_world.norm(), 1.0, 1e-9);
+
+  std::vector<int> inliers;
+  const auto absolute = EstimateAbsolutePose(world, in_b, 2.0 / 1000.0, &inliers);
+  ASSERT_TRUE(absolute.has_value());
+  EXPECT_GE(static_cast<int>(inliers.size()), 225);
+  for (int k : inliers) EXPECT_TRUE(k >= 30 && k < 270) << k;  // no swapped one kept
+  EXPECT_LT((absolute->centre_in_world - b.centre_in_world).norm(), 0.1);
+  EXPECT_GT((absolute->centre_in_world - b.centre_in_world).norm(), 1e-4);  // noisy: never exact
+  EXPECT_LT(absolute->cam_from_world.angularDistance(b.cam_from_world) * 180.0 / M_PI, 0.05);
+
+  // Too few correspondences: no answer.
+  EXPECT_FALSE(EstimateRelativePose({in_a.begin(), in_a.begin() + 4}, {in_b.begin(), in_b.begin() + 4}, 0.002));
+  EXPECT_FALSE(EstimateAbsolutePose({world.begin(), world.begin() + 3}, {in_b.begin(), in_b.begin() + 3}, 0.002,
+                                    &inliers));
 }
 
 // Features and verified matches of a synthetic survey: one keypoint per

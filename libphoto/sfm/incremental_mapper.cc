@@ -4,14 +4,14 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
+#include <opencv2/core.hpp>
 
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/base/error.h"
 #include "georef/similarity.h"
 #include "libphoto/sfm/guided_matching.h"
 #include "libphoto/sfm/tracks.h"
+#include "libphoto/geometry/pose_estimation.h"
 #include "libphoto/geometry/triangulation.h"
 
 namespace aerotri {
@@ -29,11 +29,8 @@ void MapperOptions::Check() const {
               "mapper rescue_search_radius_px", rescue_search_radius_px, "a positive number of pixels");
   CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
 }
-namespace {
 
-// The state OpenCV's RNG is reset to before each RANSAC (a fixed seed:
-// runs are reproducible whatever the thread schedule).
-constexpr std::uint64_t kRansacSeed = 0x2545F4914F6CDD1DULL;
+namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
@@ -176,35 +173,24 @@ class Mapper {
   }
 
   bool TryPair(const PairMatches& m) {
-    std::vector<cv::Point2d> a, b;
+    std::vector<Eigen::Vector2d> a, b;
     std::vector<int> fa, fb;
     for (const auto& in : m.inliers) {
       const auto na = Normalized(m.i, in[0]), nb = Normalized(m.j, in[1]);
       if (!na || !nb) continue;
-      a.emplace_back(na->x(), na->y());
-      b.emplace_back(nb->x(), nb->y());
+      a.push_back(*na);
+      b.push_back(*nb);
       fa.push_back(in[0]);
       fb.push_back(in[1]);
     }
     if (a.size() < 30) return false;
     const double threshold = options_.max_reprojection_px / std::sqrt(Focal(m.i) * Focal(m.j));
-    cv::Mat mask;
-    // OpenCV's RANSAC draws from a thread-local RNG that earlier work on
-    // this thread (matching, in the same process) has advanced by a
-    // schedule-dependent amount: reseeded, the result depends on the data.
-    cv::theRNG().state = kRansacSeed;
-    cv::Mat e = cv::findEssentialMat(a, b, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.9999, threshold, mask);
-    if (e.rows != 3 || e.cols != 3) return false;
-    cv::Mat r, t;
-    const int good = cv::recoverPose(e, a, b, r, t, 1.0, cv::Point2d(0, 0), mask);
-    if (good < 30) return false;
-    Eigen::Matrix3d R;
-    Eigen::Vector3d T;
-    cv::cv2eigen(r, R);
-    cv::cv2eigen(t, T);
+    const std::optional<RelativePose> relative = EstimateRelativePose(a, b, threshold);
+    if (!relative || relative->inliers < 30) return false;
+    const int good = relative->inliers;
     std::vector<Pose> saved = {model_.images[m.i].pose, model_.images[m.j].pose};
     model_.images[m.i].pose = Pose();
-    model_.images[m.j].pose = Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+    model_.images[m.j].pose = relative->b;
     model_.images[m.i].registered = model_.images[m.j].registered = true;
     // Triangulate the pair's tracks and check parallax.
     std::vector<double> angles;
@@ -310,47 +296,29 @@ class Mapper {
   // PnP RANSAC (P3P) on 2D-3D correspondences given as undistorted rays,
   // refined by Levenberg-Marquardt on the inliers. std::nullopt when fewer
   // than min_pnp_inliers, or less than min_inlier_ratio of them, agree.
-  std::optional<Pose> SolvePnP(int image, const std::vector<cv::Point3d>& world,
-                               const std::vector<cv::Point2d>& rays, double min_inlier_ratio,
+  std::optional<Pose> SolvePnP(int image, const std::vector<Eigen::Vector3d>& world,
+                               const std::vector<Eigen::Vector2d>& rays, double min_inlier_ratio,
                                std::vector<int>* inliers) const {
-    cv::Mat rvec, tvec;
-    inliers->clear();
     const double threshold = options_.max_reprojection_px / Focal(image);
-    cv::theRNG().state = kRansacSeed;  // as for the essential matrix
-    const bool ok = cv::solvePnPRansac(world, rays, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec, false,
-                                       2000, threshold, 0.9999, *inliers, cv::SOLVEPNP_AP3P);
-    if (!ok || static_cast<int>(inliers->size()) < options_.min_pnp_inliers ||
+    const std::optional<Pose> pose = EstimateAbsolutePose(world, rays, threshold, inliers);
+    if (!pose || static_cast<int>(inliers->size()) < options_.min_pnp_inliers ||
         inliers->size() < min_inlier_ratio * world.size()) {
       return std::nullopt;
     }
-    std::vector<cv::Point3d> wi;
-    std::vector<cv::Point2d> ri;
-    for (int k : *inliers) {
-      wi.push_back(world[k]);
-      ri.push_back(rays[k]);
-    }
-    cv::solvePnPRefineLM(wi, ri, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec);
-    cv::Mat rm;
-    cv::Rodrigues(rvec, rm);
-    Eigen::Matrix3d R;
-    Eigen::Vector3d T;
-    cv::cv2eigen(rm, R);
-    cv::cv2eigen(tvec, T);
-    return Pose::FromRotationTranslation(Eigen::Quaterniond(R), T);
+    return pose;
   }
 
   bool Register(int image) {
-    std::vector<cv::Point3d> world;
-    std::vector<cv::Point2d> rays;
+    std::vector<Eigen::Vector3d> world;
+    std::vector<Eigen::Vector2d> rays;
     std::vector<int> feats;
     for (size_t f = 0; f < tracks_.track_of[image].size(); ++f) {
       const int t = tracks_.track_of[image][f];
       if (t < 0 || point_of_track_[t] < 0) continue;
       const auto n = Normalized(image, static_cast<int>(f));
       if (!n) continue;
-      const Eigen::Vector3d& x = model_.points[point_of_track_[t]].position;
-      world.emplace_back(x.x(), x.y(), x.z());
-      rays.emplace_back(n->x(), n->y());
+      world.push_back(model_.points[point_of_track_[t]].position);
+      rays.push_back(*n);
       feats.push_back(static_cast<int>(f));
     }
     ImageRegistration& st = status_[image];
@@ -469,17 +437,16 @@ class Mapper {
     const Eigen::Vector2d shift = matcher.VoteShift(pose, points);
     bool refined_pose = false;
     for (double radius : {40.0, 3.0 * options_.max_reprojection_px}) {
-      std::vector<cv::Point3d> world;
-      std::vector<cv::Point2d> rays;
+      std::vector<Eigen::Vector3d> world;
+      std::vector<Eigen::Vector2d> rays;
       std::vector<std::pair<int, int>> pairs;  // (feature, point)
       // The first pass from the prediction shifted by the vote, the second
       // from the pose the first found.
       for (const GuidedMatch& m : matcher.Match(pose, refined_pose ? Eigen::Vector2d::Zero() : shift, radius, points)) {
         const auto n = Normalized(image, m.feature);
         if (!n) continue;
-        const Eigen::Vector3d& x = model_.points[m.point].position;
-        world.emplace_back(x.x(), x.y(), x.z());
-        rays.emplace_back(n->x(), n->y());
+        world.push_back(model_.points[m.point].position);
+        rays.push_back(*n);
         pairs.push_back({m.feature, m.point});
       }
       ImageRegistration& st = status_[image];
