@@ -38,21 +38,7 @@ using Clock = std::chrono::steady_clock;
 
 bool RunIngestStage(const PipelineOptions& o) {
   const fs::path out = o.workspace / "ingest.json";
-  if (fs::exists(out) && !o.force) {
-    const json recorded = ReadJson(out, "ingest");
-    std::string changed = FingerprintChanges(recorded.value("options", json()), IngestFingerprint(o));
-    // The working resolution sets every image's scale and the cameras' pixels.
-    const int working = recorded.value("working_max_dimension", o.features.max_dimension);
-    if (working != o.features.max_dimension) {
-      changed += (changed.empty() ? "" : "; ") + std::string("max_dimension: ") + std::to_string(working) + " -> " +
-                 std::to_string(o.features.max_dimension);
-    }
-    if (changed.empty()) {
-      Log(o, "ingest: done already (" + out.string() + ")");
-      return false;
-    }
-    Log(o, "ingest: options changed since " + out.string() + " (" + changed + "): rerunning");
-  }
+  if (fs::exists(out) && !o.force && StageIsCurrent(o, "ingest", out, "options", IngestFingerprint(o))) return false;
   const auto start = Clock::now();
   IngestRecord record = IngestSurveyImages(IngestStageOptions(o), StageProgress(o, "ingest"));
   record.options = IngestFingerprint(o);
@@ -70,10 +56,12 @@ bool RunFeatureStage(const PipelineOptions& o) {
   const fs::path record = o.workspace / "features" / "options.json";
   const json options = FeatureFingerprint(o);
   if (fs::exists(o.workspace / "features") && !o.force) {
+    // Per image, features present are kept (an interrupted extraction
+    // resumes): "done already" is said below, once every image has them.
     const std::string changed =
         FingerprintChanges(fs::exists(record) ? ReadJson(record, "features") : json(), options);
     if (!changed.empty()) {
-      Log(o, "features: options changed since " + record.string() + " (" + changed +
+      Log(o, "features: options or inputs changed since " + record.string() + " (" + changed +
                  "): every image's features are extracted again, and the stages after it rerun");
       fs::remove_all(o.workspace / "features");
     }
@@ -125,16 +113,8 @@ bool RunFeatureStage(const PipelineOptions& o) {
 bool RunMatchStage(const PipelineOptions& o) {
   const fs::path out = o.workspace / "matches.bin";
   const fs::path summary_path = o.workspace / "matches.json";
-  if (fs::exists(out) && !o.force) {
-    const std::string changed = FingerprintChanges(
-        fs::exists(summary_path) ? ReadJson(summary_path, "match").value("options", json()) : json(),
-        MatchFingerprint(o));
-    if (changed.empty()) {
-      Log(o, "match: done already (" + out.string() + ")");
-      return false;
-    }
-    Log(o, "match: options or inputs changed since " + summary_path.string() + " (" + changed +
-               "): rerunning, and the stages after it");
+  if (fs::exists(out) && !o.force && StageIsCurrent(o, "match", summary_path, "options", MatchFingerprint(o))) {
+    return false;
   }
   const auto start = Clock::now();
   IngestView ingest = LoadIngest(o);
@@ -191,15 +171,9 @@ bool RunMatchStage(const PipelineOptions& o) {
 
 bool RunReconstructStage(const PipelineOptions& o) {
   const fs::path out_json = o.workspace / "reconstruction.json";
-  if (fs::exists(out_json) && !o.force) {
-    const std::string changed =
-        FingerprintChanges(ReadJson(out_json, "reconstruct").value("options", json()), ReconstructFingerprint(o));
-    if (changed.empty()) {
-      Log(o, "reconstruct: done already (" + out_json.string() + ")");
-      return false;
-    }
-    Log(o, "reconstruct: options or inputs changed since " + out_json.string() + " (" + changed +
-               "): rerunning, and the stages after it");
+  if (fs::exists(out_json) && !o.force &&
+      StageIsCurrent(o, "reconstruct", out_json, "options", ReconstructFingerprint(o))) {
+    return false;
   }
   const auto start = Clock::now();
   IngestView ingest = LoadIngest(o);
@@ -304,15 +278,9 @@ SparseModel ToFullResolution(const SparseModel& model, const IngestView& ingest)
 
 bool RunGeoreferenceStage(const PipelineOptions& o) {
   const fs::path report_path = o.workspace / "report.json";
-  if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") && !o.force) {
-    const std::string changed = FingerprintChanges(
-        ReadJson(report_path, "georeference").value("georeference_options", json()), GeoreferenceFingerprint(o));
-    if (changed.empty()) {
-      Log(o, "georeference: done already (" + report_path.string() + ")");
-      return false;
-    }
-    Log(o, "georeference: options or inputs changed since " + report_path.string() + " (" + changed +
-               "): rerunning, and the dense stage after it");
+  if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") && !o.force &&
+      StageIsCurrent(o, "georeference", report_path, "georeference_options", GeoreferenceFingerprint(o))) {
+    return false;
   }
   const auto start = Clock::now();
   IngestView ingest = LoadIngest(o);

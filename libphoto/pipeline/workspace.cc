@@ -164,7 +164,8 @@ std::string ContentHash(const std::filesystem::path& path) {
 }
 
 nlohmann::json IngestFingerprint(const PipelineOptions& o) {
-  return {{"gps_altitude", o.gps_altitude == AltitudeReference::kEllipsoid ? "ellipsoid" : "egm96"},
+  return {{"max_dimension", o.features.max_dimension},  // every image's scale, the cameras' pixels
+          {"gps_altitude", o.gps_altitude == AltitudeReference::kEllipsoid ? "ellipsoid" : "egm96"},
           {"gps_sigma_h_m", o.gps_sigma_h_m},
           {"gps_sigma_v_m", o.gps_sigma_v_m},
           {"gps_csv", ContentHash(o.gps_csv)}};
@@ -354,6 +355,23 @@ nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest
           {"date_utc", date},
           {"options",
            {{"ingest", ingest_options}, {"georeference", GeoreferenceFingerprint(o)}, {"threads", o.num_threads}}}};
+}
+
+bool StageIsCurrent(const PipelineOptions& o, const std::string& stage, const fs::path& record,
+                    const std::string& key, const nlohmann::json& now) {
+  nlohmann::json recorded;
+  if (fs::exists(record)) {
+    const nlohmann::json doc = ReadJson(record, stage.c_str());
+    recorded = key.empty() ? doc : doc.value(key, nlohmann::json());
+  }
+  const std::string changed = FingerprintChanges(recorded, now);
+  if (changed.empty()) {
+    Log(o, stage + ": done already (" + record.string() + ")");
+    return true;
+  }
+  Log(o, stage + ": options or inputs changed since " + record.string() + " (" + changed +
+             "): rerunning, and the stages after it");
+  return false;
 }
 
 std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now) {

@@ -52,6 +52,12 @@ nlohmann::json OrthoFingerprint(const PipelineOptions& o);
 nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options);
 // "" when equal, else "key: recorded -> now; ..." (only differing keys).
 std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now);
+// Whether a stage's product, recorded in record (under key; "" for the
+// whole file; a missing file records nothing), was made under the options
+// and inputs now: says "STAGE: done already" when so, else what changed and
+// that it reruns with the stages after it.
+bool StageIsCurrent(const PipelineOptions& o, const std::string& stage, const std::filesystem::path& record,
+                    const std::string& key, const nlohmann::json& now);
 
 // matches.json: the match stage's product besides matches.bin, typed.
 struct MatchRecord {
