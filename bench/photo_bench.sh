@@ -27,21 +27,24 @@ for s in "${sets[@]}"; do
   ws="$work/aerotri_$s"
   rm -rf "$ws"
   t0=$(now)
-  /usr/bin/time -f "%M" -o "$work/rss.txt" "$exe" run "$images" -o "$ws" --quiet >/dev/null
+  "$exe" run "$images" -o "$ws" --quiet >/dev/null
   t1=$(now)
-  read -r reg rms tf tm tr tg sparse dense < <(/usr/bin/python3 - "$ws" <<'PY'
+  # Peak memory from the run's own timings.json: each stage restarts the
+  # kernel's high-water mark, so /usr/bin/time would give the last stage's.
+  read -r reg rms tf tm tr tg sparse dense rss < <(/usr/bin/python3 - "$ws" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1] + "/report.json"))
-t = r["timings"]
+t = json.load(open(sys.argv[1] + "/timings.json"))
 w = lambda k: t.get(k, {}).get("wall_s", 0.0)
 sparse = w("ingest") + w("features") + w("match") + w("reconstruct") + w("georeference")
+rss = max(v.get("process_peak_rss_mb", v.get("peak_rss_mb", 0)) for v in t.values())
 print(r["images"]["registered"], round(r["adjustment"]["final_rms_px"], 3),
       round(w("ingest") + w("features"), 1), round(w("match"), 1), round(w("reconstruct"), 1),
-      round(w("georeference"), 1), round(sparse, 1), round(w("dense") + w("report"), 1))
+      round(w("georeference"), 1), round(sparse, 1), round(w("dense") + w("report"), 1), round(rss))
 PY
 )
   printf "%-22s %-8s %10s %8s %10s %10s %10s %10s %14s %9s %8.0f\n" "$s" aerotri "$reg/$total_images" "$rms" "$tf" "$tm" "$tr" "$tg" \
-    "$sparse" "$dense" "$(awk '{print $1/1024}' "$work/rss.txt")"
+    "$sparse" "$dense" "$rss"
 
   { [ -z "${SKIP_COLMAP:-}" ] && command -v colmap >/dev/null; } || continue
   cw="$work/colmap_$s"

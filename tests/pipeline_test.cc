@@ -337,6 +337,13 @@ TEST_F(Pipeline, InterruptedDenseStageResumesToTheSameCloud) {
   RunPipeline(o);
   const auto before = nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"));
   EXPECT_GE(before["tiles"].get<int>(), 1);
+  // Fused, the depth maps are gone by default (most of a workspace's bytes).
+  EXPECT_FALSE(fs::exists(o.workspace / "depth"));
+  // Kept on request: the cloud rebuilt from new maps is the same cloud.
+  o.keep_depth_maps = true;
+  fs::remove(o.workspace / "cloud.las");
+  EXPECT_TRUE(RunDenseStage(o));
+  EXPECT_EQ(nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"))["points"], before["points"]);
   // Interrupted after some depth maps: the cloud is missing, one depth map too.
   fs::remove(o.workspace / "cloud.las");
   std::vector<fs::path> depth;

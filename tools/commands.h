@@ -140,7 +140,7 @@ struct RunArgs {
   std::string output;
   AdjustmentPolicyArgs policy = SurveyRunPolicy();  // of the georeferenced adjustment
   bool keep_going = false;
-  bool cleanup = false;
+  bool keep_depth_maps = false;
   bool force = false;
   int threads = 0;
   std::string gps_altitude = "egm96";

@@ -71,7 +71,7 @@ enum OptionGroup : unsigned {
   kGeoreferenceOptions = 1u << 3,
   kDenseOptions = 1u << 4,
   kThreadsOption = 1u << 5,
-  kRunOnlyOptions = 1u << 6,  // what only the whole run does (--cleanup, --no-ortho)
+  kRunOnlyOptions = 1u << 6,  // what only the whole run does (--no-ortho)
   kOrthoOptions = 1u << 7,
   kAllOptions = ~0u,
 };
@@ -91,12 +91,10 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
   }
   AddWorkspaceOption(cmd, &a->output, /*must_exist=*/false);
   cmd->add_flag("--force", a->force, "Redo stages whose product exists (default: resume)");
-  if (groups & kRunOnlyOptions) {
-    cmd->add_flag("--cleanup", a->cleanup,
-                  "Once the report is written, remove the dense stage's depth maps (depth/, about half of a "
-                  "finished workspace); the deliverables, features and matches stay");
-  }
   if (groups & kDenseOptions) {
+    cmd->add_flag("--keep-depth-maps", a->keep_depth_maps,
+                  "Keep the dense stage's depth maps (depth/) after fusion; by default they are removed once "
+                  "the cloud is written (they are most of a workspace, and nothing after fusion reads them)");
     cmd->add_flag("--keep-going", a->keep_going,
                   "Write the cloud and DSM even when the adjustment failed its quality gates (the report "
                   "says failed and the exit code stays 1)");
@@ -219,7 +217,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.workspace = a.output;
   o.force = a.force;
   o.keep_going = a.keep_going;
-  o.cleanup = a.cleanup;
+  o.keep_depth_maps = a.keep_depth_maps;
   o.num_threads = a.threads;
   o.gps_altitude = a.gps_altitude == "ellipsoid" ? AltitudeReference::kEllipsoid : AltitudeReference::kEgm96;
   o.gps_sigma_h_m = a.gps_sigma_h_m;

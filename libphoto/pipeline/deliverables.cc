@@ -625,6 +625,7 @@ bool RunDenseStage(const PipelineOptions& o) {
       rerun = true;
     } else if (changed.empty()) {
       Log(o, "dense: done already (" + las.string() + ")");
+      RemoveDepthMaps(o);  // a run killed between the products and the removal
       return false;
     }
     if (!rerun) {
@@ -632,7 +633,7 @@ bool RunDenseStage(const PipelineOptions& o) {
       rerun = true;
     }
   }
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   if (rerun) fs::remove_all(o.workspace / "depth");
   json report = ReadJson(o.workspace / "report.json", "georeference");
   if (!report.value("georeferenced", false)) {
@@ -673,6 +674,7 @@ bool RunDenseStage(const PipelineOptions& o) {
     }
     WriteTextFileAtomically(o.workspace / "dense.json",
                             json({{"points", 0}, {"pairs", summary.pairs}, {"skipped", why}}).dump(2) + "\n");
+    RemoveDepthMaps(o);
     RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
     return false;
   }
@@ -753,6 +755,7 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"options", DenseFingerprint(o)},
                       {"file_bytes", file_bytes}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
+  RemoveDepthMaps(o);  // fused: nothing reads them now
   fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
   Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud.resolution_m) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
@@ -767,7 +770,7 @@ bool RunReportStage(const PipelineOptions& o) {
     Log(o, "report: done already (" + html.string() + ")");
     return false;
   }
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   json report = ReadJson(o.workspace / "report.json", "georeference");
   std::map<std::string, std::string> previews;
   if (fs::exists(o.workspace / "dense.json")) {
@@ -858,7 +861,7 @@ bool RunOrthoStage(const PipelineOptions& o) {
     }
     Log(o, "ortho: " + (changed.empty() ? std::string("ortho.tif damaged since it was written") : "inputs changed (" + changed + ")") + ": rerunning");
   }
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   const json report = ReadJson(o.workspace / "report.json", "georeference");
   if (report.value("status", "") == "failed" && !o.keep_going) {
     throw InvalidArgument((o.workspace / "report.json").string() +

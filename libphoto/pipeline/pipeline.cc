@@ -39,7 +39,7 @@ using Clock = std::chrono::steady_clock;
 bool RunIngestStage(const PipelineOptions& o) {
   const fs::path out = o.workspace / "ingest.json";
   if (fs::exists(out) && !o.force && StageIsCurrent(o, "ingest", out, "options", IngestFingerprint(o))) return false;
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   IngestRecord record = IngestSurveyImages(IngestStageOptions(o), StageProgress(o, "ingest"));
   record.options = IngestFingerprint(o);
   fs::create_directories(o.workspace);
@@ -74,7 +74,7 @@ bool RunFeatureStage(const PipelineOptions& o) {
     Log(o, "features: done already");
     return false;
   }
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   fs::create_directories(o.workspace / "features");
   // Recorded first, so that an interrupted extraction resumes under the same options.
   WriteTextFileAtomically(record, options.dump(2) + "\n");
@@ -116,7 +116,7 @@ bool RunMatchStage(const PipelineOptions& o) {
   if (fs::exists(out) && !o.force && StageIsCurrent(o, "match", summary_path, "options", MatchFingerprint(o))) {
     return false;
   }
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   IngestView ingest = LoadIngest(o);
   const std::vector<ImageFeatures> features = LoadFeatures(o, &ingest);
   // Horizontal GPS positions in a local frame for neighbourhoods.
@@ -175,7 +175,7 @@ bool RunReconstructStage(const PipelineOptions& o) {
       StageIsCurrent(o, "reconstruct", out_json, "options", ReconstructFingerprint(o))) {
     return false;
   }
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   IngestView ingest = LoadIngest(o);
   const std::vector<ImageFeatures> features = LoadFeatures(o, &ingest);
   const std::vector<PairMatches> matches = ReadMatches(o.workspace / "matches.bin");
@@ -282,7 +282,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
       StageIsCurrent(o, "georeference", report_path, "georeference_options", GeoreferenceFingerprint(o))) {
     return false;
   }
-  const auto start = Clock::now();
+  const auto start = BeginStage();
   IngestView ingest = LoadIngest(o);
   const ReconstructionRecord recon = LoadReconstructionRecord(o);
   SparseModel model = ReadColmapText(o.workspace / "reconstruction");
@@ -521,17 +521,17 @@ void ValidateInputs(const PipelineOptions& o) {
   }
 }
 
-void CleanUpIntermediates(const PipelineOptions& o) {
+void RemoveDepthMaps(const PipelineOptions& o) {
   const fs::path depth = o.workspace / "depth";
-  if (!fs::exists(depth)) return;
+  if (o.keep_depth_maps || !fs::exists(depth)) return;
   std::uintmax_t bytes = 0;
   for (const auto& entry : fs::recursive_directory_iterator(depth)) {
     std::error_code ec;
     if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
   }
   fs::remove_all(depth);
-  Log(o, "cleanup: removed " + depth.string() + " (the dense stage's depth maps, " + std::to_string(bytes >> 20) +
-             " MB); the deliverables, features and matches stay");
+  Log(o, "dense: removed " + depth.string() + " (the depth maps, " + std::to_string(bytes >> 20) +
+             " MB, fused into the cloud; --keep-depth-maps keeps them)");
 }
 
 std::string RunPipeline(const PipelineOptions& o) {
@@ -550,7 +550,6 @@ std::string RunPipeline(const PipelineOptions& o) {
     RunOrthoStage(o);
   }
   RunReportStage(o);
-  if (o.cleanup) CleanUpIntermediates(o);
   return status;
 }
 

@@ -41,10 +41,11 @@ struct PipelineOptions {
   bool force = false;  // redo stages whose product exists
   // Write the deliverables of a failed adjustment too (tagged as failed).
   bool keep_going = false;
-  // After the report, remove the dense stage's depth maps (depth/: about
-  // half of a finished workspace). Features and matches stay: a rerun with a
-  // changed option starts from them.
-  bool cleanup = false;
+  // Keep the dense stage's depth maps (depth/) once the cloud is fused. By
+  // default they are removed then: they are most of a workspace (453 MB of
+  // the sample survey's 861 MB) and nothing after fusion reads them; an
+  // interrupted dense stage keeps the maps it has and resumes from them.
+  bool keep_depth_maps = false;
   int num_threads = 0;
 
   // ingest
@@ -129,9 +130,10 @@ void ValidateInputs(const PipelineOptions& options);
 // ok, warnings, failed). A failed adjustment stops before the dense stage
 // unless options.keep_going; the report stage still runs.
 std::string RunPipeline(const PipelineOptions& options);
-// options.cleanup's work, run after the report: removes OUTPUT/depth/ (the
-// dense stage's depth maps) and says how much it freed; nothing else.
-void CleanUpIntermediates(const PipelineOptions& options);
+// Removes OUTPUT/depth/ (the dense stage's depth maps) unless
+// options.keep_depth_maps, and says how much it freed; nothing else. The
+// dense stage calls it once its products are written.
+void RemoveDepthMaps(const PipelineOptions& options);
 // report.json's status in a workspace, or "" before the georeference stage.
 std::string SurveyStatusOf(const std::filesystem::path& workspace);
 

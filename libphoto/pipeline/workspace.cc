@@ -3,8 +3,6 @@
 
 #include <ctime>
 
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,6 +11,7 @@
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/memory.h"
 #include "libphoto/base/parallel.h"
 
 namespace aerotri {
@@ -27,10 +26,13 @@ ProgressCallback StageProgress(const PipelineOptions& o, const std::string& stag
   return o.progress ? o.progress(stage) : ProgressCallback();
 }
 
-double PeakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;
+namespace {
+bool peak_is_the_stages = false;  // the last BeginStage restarted the high-water mark
+}  // namespace
+
+std::chrono::steady_clock::time_point BeginStage() {
+  peak_is_the_stages = ResetPeakRss();
+  return std::chrono::steady_clock::now();
 }
 
 void RecordTiming(const PipelineOptions& o, const std::string& stage, double seconds) {
@@ -43,7 +45,10 @@ void RecordTiming(const PipelineOptions& o, const std::string& stage, double sec
       timings = json::object();
     }
   }
-  timings[stage] = {{"wall_s", seconds}, {"peak_rss_mb", PeakRssMb()}};
+  timings[stage] = {{"wall_s", seconds},
+                    {"peak_rss_mb", PeakRssMb()},
+                    {"process_peak_rss_mb", ProcessPeakRssMb()},
+                    {"peak_rss_scope", peak_is_the_stages ? "stage" : "process"}};
   WriteTextFileAtomically(path, timings.dump(2) + "\n");
 }
 

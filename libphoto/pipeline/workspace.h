@@ -4,6 +4,7 @@
 // What the pipeline stages share about the workspace folder: reading earlier
 // stages' products, timings, logging and progress.
 
+#include <chrono>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -19,8 +20,13 @@ namespace aerotri {
 
 void Log(const PipelineOptions& o, const std::string& message);
 ProgressCallback StageProgress(const PipelineOptions& o, const std::string& stage);
-double PeakRssMb();
-// Adds {wall_s, peak_rss_mb} for a stage to OUTPUT/timings.json.
+// A stage's start: restarts the memory high-water mark (ResetPeakRss) so
+// that RecordTiming gives the stage's own peak, not the process's so far, and
+// returns the time.
+std::chrono::steady_clock::time_point BeginStage();
+// Adds {wall_s, peak_rss_mb (this stage's peak since BeginStage),
+// process_peak_rss_mb, peak_rss_scope ("stage", or "process" where the
+// kernel would not restart the mark)} for a stage to OUTPUT/timings.json.
 void RecordTiming(const PipelineOptions& o, const std::string& stage, double seconds);
 unsigned Threads(const PipelineOptions& o);
 // Parses a workspace JSON file; IoError naming the stage to run when missing.

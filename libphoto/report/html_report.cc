@@ -699,7 +699,7 @@ std::string TrackTable(const json& r) {
 std::string Timings(const json& r) {
   const json& t = r.value("timings", json::object());
   if (!t.is_object() || t.empty()) return "";
-  static const char* kOrder[] = {"ingest", "features", "match", "reconstruct", "georeference", "dense", "report"};
+  static const char* kOrder[] = {"ingest", "features", "match", "reconstruct", "georeference", "dense", "ortho", "report"};
   std::ostringstream h;
   h << "<h2>Processing</h2><table><tr><th>stage</th><th>time (s)</th><th>peak memory (MB)</th></tr>";
   double total = 0.0;

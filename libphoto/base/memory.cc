@@ -1,0 +1,64 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/base/memory.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <atomic>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace aerotri {
+namespace {
+
+// A "Name:   1234 kB" line of /proc/self/status, in MiB; negative when absent.
+double StatusFieldMb(const char* name) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  const std::string key = std::string(name) + ":";
+  while (std::getline(in, line)) {
+    if (line.compare(0, key.size(), key) != 0) continue;
+    std::istringstream fields(line.substr(key.size()));
+    double kb = -1.0;
+    fields >> kb;
+    return kb >= 0.0 ? kb / 1024.0 : -1.0;
+  }
+  return -1.0;
+}
+
+std::atomic<double> peak_before_reset{0.0};  // the largest mark a reset discarded
+
+double RusageMaxRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // Linux reports kB
+}
+
+}  // namespace
+
+double CurrentRssMb() {
+  const double mb = StatusFieldMb("VmRSS");
+  return mb >= 0.0 ? mb : 0.0;
+}
+
+double PeakRssMb() {
+  const double mb = StatusFieldMb("VmHWM");
+  return mb >= 0.0 ? mb : RusageMaxRssMb();
+}
+
+double ProcessPeakRssMb() { return std::max({peak_before_reset.load(), PeakRssMb(), RusageMaxRssMb()}); }
+
+bool ResetPeakRss() {
+  const double before = PeakRssMb();
+  double seen = peak_before_reset.load();
+  while (before > seen && !peak_before_reset.compare_exchange_weak(seen, before)) {
+  }
+  std::ofstream out("/proc/self/clear_refs");
+  if (!out) return false;
+  out << "5";
+  out.flush();
+  return static_cast<bool>(out);
+}
+
+}  // namespace aerotri

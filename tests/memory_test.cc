@@ -1,0 +1,44 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The memory figures every stage records: a stage's peak is its own, not the
+// process's peak so far.
+#include "libphoto/base/memory.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <vector>
+
+namespace aerotri {
+namespace {
+
+constexpr std::size_t kBlockMb = 256;
+
+// Touches every page of a block the size of kBlockMb, then frees it (glibc
+// returns a block this large to the kernel at once: it is mmapped).
+void TouchAndFree() {
+  std::vector<char> block(kBlockMb << 20);
+  std::memset(block.data(), 1, block.size());
+  volatile char sink = block[block.size() / 2];
+  (void)sink;
+}
+
+TEST(Memory, AStagesPeakIsItsOwnOnceTheMarkIsRestarted) {
+  const double before = CurrentRssMb();
+  ASSERT_GT(before, 0.0) << "no /proc/self/status";
+  TouchAndFree();
+  // The block was resident: the process's peak and the mark both hold it.
+  EXPECT_GE(ProcessPeakRssMb(), before + 0.9 * kBlockMb);
+  EXPECT_GE(PeakRssMb(), before + 0.9 * kBlockMb);
+  if (!ResetPeakRss()) GTEST_SKIP() << "the kernel would not restart the high-water mark here";
+  // Restarted: the freed block is not in the mark, the process peak keeps it.
+  EXPECT_LT(PeakRssMb(), before + 0.25 * kBlockMb);
+  EXPECT_GE(ProcessPeakRssMb(), before + 0.9 * kBlockMb);
+  // A second stage that uses the block again has it in its own peak.
+  TouchAndFree();
+  EXPECT_GE(PeakRssMb(), before + 0.9 * kBlockMb);
+  EXPECT_LT(PeakRssMb(), before + 1.25 * kBlockMb);
+}
+
+}  // namespace
+}  // namespace aerotri
