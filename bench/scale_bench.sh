@@ -6,10 +6,11 @@
 # time per photo, peak memory (and the stage that reached it), check-point
 # RMSE and the workspace's size without its deliverables.
 # Usage: bench/scale_bench.sh [photos ...]   (default: 100 250 500 1000)
-# Env: BENCH_WORK (default /tmp/aerotri_scale_bench), KEEP=1 keeps workspaces.
+# Env: BENCH_WORK (default /tmp/aerotri_scale_bench), KEEP=1 keeps workspaces,
+# AEROTRI=path runs another binary (e.g. a copy, while rebuilding).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-exe="$(pwd)/build/tools/aerotri"
+exe="${AEROTRI:-$(pwd)/build/tools/aerotri}"
 [ -x "$exe" ] || scripts/build.sh >/dev/null
 sizes=("$@")
 [ ${#sizes[@]} -gt 0 ] || sizes=(100 250 500 1000)

@@ -175,6 +175,57 @@ TEST(DenseFusion, AgreementWithinAVoxelAndALoneMapStands) {
   EXPECT_TRUE(exact.positions.empty()) << exact.positions.size();
 }
 
+// Depth maps filed by fusion tile (as the dense stage writes them) fuse to
+// exactly the cloud of the same maps unfiled, and so do maps filed for
+// another grid (read whole): the tile table only saves reading.
+TEST(DenseFusion, TiledDepthMapsFuseToTheSameCloud) {
+  testing::TempDir dir;
+  const double res = 0.05;
+  std::vector<Eigen::Vector3d> a, b;
+  std::vector<std::array<std::uint8_t, 3>> colours;
+  std::uint32_t state = 7;
+  auto noise = [&]() {
+    state = state * 1664525u + 1013904223u;
+    return (state >> 8) / double(1 << 24) - 0.5;
+  };
+  for (double x = -30.0; x < 45.0; x += 0.06) {   // across tile boundaries at 0 and 25.6 m,
+    for (double y = -4.0; y < 30.0; y += (x < 0 ? 0.5 : 0.07)) {  // negative coordinates included
+      const double z = 0.3 * std::sin(0.2 * x) + 0.2 * std::cos(0.3 * y);
+      a.emplace_back(x + 0.01 * noise(), y + 0.01 * noise(), z + 0.02 * noise());
+      b.emplace_back(x + 0.01 * noise(), y + 0.01 * noise(), z + 0.02 * noise());
+      colours.push_back({static_cast<std::uint8_t>(x + 100), static_cast<std::uint8_t>(y + 100), 9});
+    }
+  }
+  DenseOptions o;
+  o.tile_voxels = 512;  // 25.6 m tiles: several, in both signs
+  const std::vector<std::filesystem::path> plain = {dir.path() / "a.pts", dir.path() / "b.pts"};
+  const std::vector<std::filesystem::path> tiled = {dir.path() / "a_t.pts", dir.path() / "b_t.pts"};
+  const std::vector<std::filesystem::path> other = {dir.path() / "a_o.pts", dir.path() / "b_o.pts"};
+  WriteDepthMap(plain[0], a, colours);
+  WriteDepthMap(plain[1], b, colours);
+  WriteDepthMap(tiled[0], a, colours, res, o.tile_voxels);
+  WriteDepthMap(tiled[1], b, colours, res, o.tile_voxels);
+  WriteDepthMap(other[0], a, colours, res, 64);
+  WriteDepthMap(other[1], b, colours, res, 64);
+  DenseSummary s_plain, s_tiled, s_other;
+  const DenseCloud c_plain = FuseDepthMaps(plain, res, o, &s_plain);
+  const DenseCloud c_tiled = FuseDepthMaps(tiled, res, o, &s_tiled);
+  const DenseCloud c_other = FuseDepthMaps(other, res, o, &s_other);
+  ASSERT_GT(c_plain.positions.size(), 100000u);
+  EXPECT_GE(s_plain.tiles, 6);
+  for (const DenseCloud* c : {&c_tiled, &c_other}) {
+    ASSERT_EQ(c->positions.size(), c_plain.positions.size());
+    for (size_t k = 0; k < c->positions.size(); ++k) {
+      ASSERT_EQ(c->positions[k], c_plain.positions[k]) << k;
+      ASSERT_EQ(c->colours[k], c_plain.colours[k]) << k;
+      ASSERT_EQ(c->views[k], c_plain.views[k]) << k;
+    }
+  }
+  // A file cut short is named, not fused.
+  std::filesystem::resize_file(tiled[0], std::filesystem::file_size(tiled[0]) - 100);
+  EXPECT_THROW(FuseDepthMaps(tiled, res, o, &s_tiled), IoError);
+}
+
 TEST(ParallelFor, RunsEveryIndexOnce) {
   std::vector<std::atomic<int>> hits(1000);
   ParallelFor(hits.size(), 2, [&](size_t k) { ++hits[k]; });

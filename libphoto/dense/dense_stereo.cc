@@ -9,6 +9,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <mutex>
+#include <optional>
 #include <unordered_map>
 
 #include "libphoto/base/atomic_file.h"
@@ -125,13 +126,37 @@ std::uint64_t VoxelKey(const Eigen::Vector3d& x, double res) {
   return (q(x.x(), res) << 42) | (q(x.y(), res) << 21) | q(x.z(), kVoxelDepth * res);
 }
 
+// Fusion tiles: the tile that owns a point is the one holding its voxel
+// column (voxel indices floor(x / res), tile_voxels of them per side).
+struct TileGrid {
+  double res = 0.0;
+  long long tile_voxels = 0;  // 0: not tiled
+  std::pair<long long, long long> TileOf(double x, double y) const {
+    auto div = [&](double v) {
+      const long long voxel = static_cast<long long>(std::floor(v / res));
+      return voxel >= 0 ? voxel / tile_voxels : -((-voxel - 1) / tile_voxels) - 1;  // floor division
+    };
+    return {div(x), div(y)};
+  }
+  bool operator==(const TileGrid& other) const { return res == other.res && tile_voxels == other.tile_voxels; }
+};
+
 // The points of one depth map on disk, so that fusion can run tile by tile
 // (memory bounded by a tile, not the survey) and an interrupted run resumes.
-// File: "AERPTS01", uint64 count, double bbox[6] (min xyz, max xyz), then
-// count x (float32 x, y, z in the adjustment frame, uint8 r, g, b).
+// File "AERPTS02": uint64 count, double bbox[6] (min xyz, max xyz), double
+// res, int64 tile_voxels (0: not tiled), uint64 tiles, then per tile {int64
+// tx, ty, uint64 first record, count}, then count records (float32 x, y, z
+// in the adjustment frame, uint8 r, g, b) sorted by tile. Fusion then reads
+// only the records of the tile at hand: every depth map is read once over
+// all tiles, not once per tile its bounding box meets (about nine times at
+// 512-voxel tiles). "AERPTS01" (no res, tiles or table) is still read.
 class DepthPoints {
  public:
   static constexpr size_t kRecord = 15;
+  struct TileRange {
+    long long tx, ty;
+    std::uint64_t first, count;
+  };
   void Add(const Eigen::Vector3d& x, std::uint8_t r, std::uint8_t g, std::uint8_t b) {
     const float v[3] = {static_cast<float>(x.x()), static_cast<float>(x.y()), static_cast<float>(x.z())};
     const size_t at = data_.size();
@@ -144,31 +169,101 @@ class DepthPoints {
     hi_ = hi_.cwiseMax(x);
   }
   size_t count() const { return data_.size() / kRecord; }
-  void Write(const std::filesystem::path& path) const {
+  // The count in the file's header (Read with or without its points).
+  std::uint64_t header_count() const { return header_count_; }
+  // Writes the records sorted by the tile of grid that owns them, with the
+  // table of tiles (grid.tile_voxels 0: as added, no table).
+  void Write(const std::filesystem::path& path, const TileGrid& grid) const {
+    std::vector<TileRange> table;
+    std::vector<char> sorted;
+    if (grid.tile_voxels > 0 && count() > 0) {
+      std::vector<std::pair<std::pair<long long, long long>, std::uint32_t>> order(count());
+      for (size_t k = 0; k < count(); ++k) {
+        uint8_t rgb[3];
+        const Eigen::Vector3d p = Point(k, rgb);  // as stored (float): as fusion will see it
+        order[k] = {grid.TileOf(p.x(), p.y()), static_cast<std::uint32_t>(k)};
+      }
+      std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      sorted.resize(data_.size());
+      for (size_t k = 0; k < order.size(); ++k) {
+        std::memcpy(&sorted[k * kRecord], &data_[order[k].second * kRecord], kRecord);
+        if (table.empty() || table.back().tx != order[k].first.first || table.back().ty != order[k].first.second) {
+          table.push_back({order[k].first.first, order[k].first.second, k, 0});
+        }
+        ++table.back().count;
+      }
+    }
+    const std::vector<char>& records = table.empty() ? data_ : sorted;
     WriteFileAtomically(path, [&](std::ostream& out) {
-      const std::uint64_t n = count();
-      out.write("AERPTS01", 8);
+      const std::uint64_t n = count(), tiles = table.size();
+      const std::int64_t tile_voxels = table.empty() ? 0 : grid.tile_voxels;
+      const double res = table.empty() ? 0.0 : grid.res;
+      out.write("AERPTS02", 8);
       out.write(reinterpret_cast<const char*>(&n), 8);
       out.write(reinterpret_cast<const char*>(lo_.data()), 24);
       out.write(reinterpret_cast<const char*>(hi_.data()), 24);
-      out.write(data_.data(), static_cast<std::streamsize>(data_.size()));
+      out.write(reinterpret_cast<const char*>(&res), 8);
+      out.write(reinterpret_cast<const char*>(&tile_voxels), 8);
+      out.write(reinterpret_cast<const char*>(&tiles), 8);
+      for (const TileRange& t : table) {
+        const std::int64_t v[4] = {t.tx, t.ty, static_cast<std::int64_t>(t.first), static_cast<std::int64_t>(t.count)};
+        out.write(reinterpret_cast<const char*>(v), 32);
+      }
+      out.write(records.data(), static_cast<std::streamsize>(records.size()));
     });
   }
-  // Reads the header (bbox) and, with points, the records.
-  static DepthPoints Read(const std::filesystem::path& path, bool points) {
+  // Reads the header (bbox, count, tile table) and, with points, the
+  // records: all of them, or with a tile, those the file files under that
+  // tile of the same grid (all of them when the file's grid differs or it
+  // has none; fusion keeps only the points its tile owns either way).
+  static DepthPoints Read(const std::filesystem::path& path, bool points,
+                          const std::optional<std::pair<long long, long long>>& tile = std::nullopt,
+                          const TileGrid& grid = {}) {
     std::ifstream in(path, std::ios::binary);
     char magic[8];
     std::uint64_t n = 0;
     DepthPoints d;
-    if (!in.read(magic, 8) || std::memcmp(magic, "AERPTS01", 8) != 0 || !in.read(reinterpret_cast<char*>(&n), 8) ||
+    auto fail = [&]() { throw IoError(path.string(), "not a complete depth-point file; delete it to recompute"); };
+    if (!in.read(magic, 8) || !in.read(reinterpret_cast<char*>(&n), 8) ||
         !in.read(reinterpret_cast<char*>(d.lo_.data()), 24) || !in.read(reinterpret_cast<char*>(d.hi_.data()), 24)) {
-      throw IoError(path.string(), "not a complete depth-point file; delete it to recompute");
+      fail();
     }
-    if (points) {
-      d.data_.resize(n * kRecord);
-      if (!in.read(d.data_.data(), static_cast<std::streamsize>(d.data_.size()))) {
-        throw IoError(path.string(), "truncated depth-point file; delete it to recompute");
+    const bool v2 = std::memcmp(magic, "AERPTS02", 8) == 0;
+    if (!v2 && std::memcmp(magic, "AERPTS01", 8) != 0) fail();
+    std::uint64_t tiles = 0;
+    if (v2) {
+      std::int64_t tile_voxels = 0;
+      if (!in.read(reinterpret_cast<char*>(&d.grid_.res), 8) || !in.read(reinterpret_cast<char*>(&tile_voxels), 8) ||
+          !in.read(reinterpret_cast<char*>(&tiles), 8) || tiles > n) {
+        fail();
       }
+      d.grid_.tile_voxels = tile_voxels;
+      d.table_.resize(tiles);
+      for (TileRange& t : d.table_) {
+        std::int64_t v[4];
+        if (!in.read(reinterpret_cast<char*>(v), 32) || v[2] < 0 || v[3] < 0 ||
+            static_cast<std::uint64_t>(v[2]) + static_cast<std::uint64_t>(v[3]) > n) {
+          fail();
+        }
+        t = {v[0], v[1], static_cast<std::uint64_t>(v[2]), static_cast<std::uint64_t>(v[3])};
+      }
+    }
+    d.header_count_ = n;
+    if (!points) return d;
+    std::uint64_t first = 0, count = n;
+    if (tile && !d.table_.empty() && d.grid_ == grid) {
+      count = 0;
+      for (const TileRange& t : d.table_) {
+        if (t.tx == tile->first && t.ty == tile->second) {
+          first = t.first;
+          count = t.count;
+        }
+      }
+    }
+    d.data_.resize(count * kRecord);
+    in.seekg(static_cast<std::streamoff>(first * kRecord), std::ios::cur);
+    if (!in.read(d.data_.data(), static_cast<std::streamsize>(d.data_.size()))) {
+      throw IoError(path.string(), "truncated depth-point file; delete it to recompute");
     }
     return d;
   }
@@ -180,15 +275,30 @@ class DepthPoints {
   }
   const Eigen::Vector3d& lo() const { return lo_; }
   const Eigen::Vector3d& hi() const { return hi_; }
+  // The records the file holds under a tile of its grid; its whole count
+  // when the grids differ or it has no table.
+  std::uint64_t CountIn(const std::pair<long long, long long>& tile, const TileGrid& grid) const {
+    if (table_.empty() || !(grid_ == grid)) return header_count_;
+    for (const TileRange& t : table_) {
+      if (t.tx == tile.first && t.ty == tile.second) return t.count;
+    }
+    return 0;
+  }
 
  private:
   std::vector<char> data_;
+  std::uint64_t header_count_ = 0;
+  TileGrid grid_;
+  std::vector<TileRange> table_;
   Eigen::Vector3d lo_ = Eigen::Vector3d::Constant(1e300);
   Eigen::Vector3d hi_ = Eigen::Vector3d::Constant(-1e300);
 };
 
+// The fusion tiles at voxel size res.
+TileGrid FusionGrid(double res, const DenseOptions& o) { return {res, o.tile_voxels > 0 ? o.tile_voxels : 512}; }
+
 // Fuses depth-point files tile by tile: a tile holds at most tile_voxels x
-// tile_voxels columns of voxels, and only the files whose bounding box meets
+// tile_voxels columns of voxels, and only the records each file holds under
 // it are read for it. Within a tile the points are sorted by voxel and
 // reduced (a sort beats a node hash map several times over at millions of
 // voxels); tiles run on all cores.
@@ -200,15 +310,18 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
   cloud.resolution_m = res;
   if (files.empty()) return cloud;
   std::vector<Eigen::Vector3d> lo, hi;
+  std::vector<DepthPoints> heads;  // bounding boxes and tile tables
   Eigen::Vector2d all_lo(1e300, 1e300), all_hi(-1e300, -1e300);
   for (const auto& f : files) {
-    const DepthPoints h = DepthPoints::Read(f, false);
+    heads.push_back(DepthPoints::Read(f, false));
+    const DepthPoints& h = heads.back();
     lo.push_back(h.lo());
     hi.push_back(h.hi());
     all_lo = all_lo.cwiseMin(h.lo().head<2>());
     all_hi = all_hi.cwiseMax(h.hi().head<2>());
   }
-  const long long tile_voxels = o.tile_voxels > 0 ? o.tile_voxels : 1500;
+  const TileGrid grid = FusionGrid(res, o);
+  const long long tile_voxels = grid.tile_voxels;
   const double tile = tile_voxels * res;
   const long long x0 = static_cast<long long>(std::floor(all_lo.x() / tile));
   const long long y0 = static_cast<long long>(std::floor(all_lo.y() / tile));
@@ -228,10 +341,19 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
   ParallelFor(tiles.size(), ThreadCount(o.num_threads), [&](size_t t) {
     const auto [tx, ty] = tiles[t];
     const double bx0 = tx * tile, bx1 = (tx + 1) * tile, by0 = ty * tile, by1 = (ty + 1) * tile;
+    auto meets_tile = [&](size_t f) {
+      return !(hi[f].x() < bx0 || lo[f].x() >= bx1 || hi[f].y() < by0 || lo[f].y() >= by1);
+    };
+    // Reserved at the most the tile can receive: address space, not memory
+    // (pages are resident once written), and no reallocation, which would
+    // hold the old and the new array at once (up to 3x the records).
+    std::uint64_t most = 0;
+    for (size_t f = 0; f < files.size(); ++f) most += meets_tile(f) ? heads[f].CountIn(tiles[t], grid) : 0;
     std::vector<Record> records;
+    records.reserve(most);
     for (size_t f = 0; f < files.size(); ++f) {
-      if (hi[f].x() < bx0 || lo[f].x() >= bx1 || hi[f].y() < by0 || lo[f].y() >= by1) continue;
-      const DepthPoints d = DepthPoints::Read(files[f], true);
+      if (!meets_tile(f) || heads[f].CountIn(tiles[t], grid) == 0) continue;
+      const DepthPoints d = DepthPoints::Read(files[f], true, tiles[t], grid);
       for (size_t k = 0; k < d.count(); ++k) {
         Record r;
         const Eigen::Vector3d x = d.Point(k, r.rgb);
@@ -318,12 +440,20 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
       part.views.push_back(static_cast<std::uint16_t>(views));
     }
   });
-  for (const DenseCloud& part : parts) {
+  // Reserved (not yet resident) at the total, then each tile appended and
+  // freed: resident memory stays one cloud plus one tile, not two clouds.
+  size_t total = 0;
+  for (const DenseCloud& part : parts) total += part.positions.size();
+  cloud.positions.reserve(total);
+  cloud.colours.reserve(total);
+  cloud.views.reserve(total);
+  for (DenseCloud& part : parts) {
     if (part.positions.empty()) continue;
     ++s->tiles;
     cloud.positions.insert(cloud.positions.end(), part.positions.begin(), part.positions.end());
     cloud.colours.insert(cloud.colours.end(), part.colours.begin(), part.colours.end());
     cloud.views.insert(cloud.views.end(), part.views.begin(), part.views.end());
+    part = DenseCloud();
   }
   s->fused_points = static_cast<long long>(cloud.positions.size());
   return cloud;
@@ -337,13 +467,13 @@ DenseCloud FuseDepthMaps(const std::vector<std::filesystem::path>& files, double
 }
 
 void WriteDepthMap(const std::filesystem::path& path, const std::vector<Eigen::Vector3d>& points,
-                   const std::vector<std::array<std::uint8_t, 3>>& colours) {
+                   const std::vector<std::array<std::uint8_t, 3>>& colours, double res, long long tile_voxels) {
   DepthPoints d;
   for (size_t k = 0; k < points.size(); ++k) {
     const auto rgb = k < colours.size() ? colours[k] : std::array<std::uint8_t, 3>{128, 128, 128};
     d.Add(points[k], rgb[0], rgb[1], rgb[2]);
   }
-  d.Write(path);
+  d.Write(path, res > 0 && tile_voxels > 0 ? TileGrid{res, tile_voxels} : TileGrid{});
 }
 
 double MedianGsd(const SparseModel& model) {
@@ -362,7 +492,8 @@ double MedianGsd(const SparseModel& model) {
 // Depth points of image i matched with j, written to path. False when the
 // pair cannot be matched (an image unreadable, too few sparse points).
 bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::function<cv::Mat(int)>& load_image,
-                       const DenseOptions& o, const std::filesystem::path& path, long long* num_points) {
+                       const DenseOptions& o, const TileGrid& grid, const std::filesystem::path& path,
+                       long long* num_points) {
   const Image& a = model.images[i];
   const Image& b = model.images[j];
   const Camera& ca = model.cameras[a.camera];
@@ -463,7 +594,7 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
     }
   }
   *num_points = static_cast<long long>(points.count());
-  points.Write(path);
+  points.Write(path, grid);
   return true;
 }
 
@@ -498,7 +629,7 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
     if (std::filesystem::exists(paths[k])) {
       ok[k] = 1;  // computed by an earlier, interrupted run
     } else {
-      ok[k] = DepthPointsOfPair(model, i, j, load_image, o, paths[k], &n) ? 1 : 0;
+      ok[k] = DepthPointsOfPair(model, i, j, load_image, o, FusionGrid(res, o), paths[k], &n) ? 1 : 0;
       computed = true;
     }
     std::lock_guard<std::mutex> lock(mutex);

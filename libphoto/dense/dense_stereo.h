@@ -61,7 +61,15 @@ struct DenseOptions {
   // Where each image's depth points are kept (<image>.pts): fusion reads them
   // tile by tile, and an interrupted run recomputes only what is missing.
   std::filesystem::path work_dir;
-  long long tile_voxels = 1500;  // tile side in voxels (memory ~ its square)
+  // Tile side in voxels. Memory ~ its square: every depth point in a tile is
+  // held (32 bytes) while it is fused, one tile per thread. The number of
+  // depth points per voxel column is the number of depth maps that see it
+  // (the overlap), whatever the GSD or the survey's size, so a fixed side
+  // bounds fusion's memory: at 512 a tile of the sample survey holds at most
+  // about 3 million (the dense stage's peak fell from 1.33 GB at 1,500 to
+  // 0.66 GB). A multiple of 16, so that the 16 x 16-voxel cells of the
+  // lone-map rule never straddle two tiles (no seams).
+  long long tile_voxels = 512;
 };
 
 struct DenseCloud {
@@ -92,9 +100,13 @@ DenseCloud ComputeDenseCloud(const SparseModel& model,
 DenseCloud FuseDepthMaps(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& options,
                          DenseSummary* summary);
 // Writes one depth map's points (adjustment frame) and colours in the file
-// format FuseDepthMaps reads, atomically.
+// format FuseDepthMaps reads, atomically. With tile_voxels > 0 the records
+// are filed by fusion tile at voxel size res (as ComputeDenseCloud writes
+// them, so that fusion reads each tile's records only); fusion with another
+// grid, or of an untiled file, reads the whole file for every tile it meets.
 void WriteDepthMap(const std::filesystem::path& path, const std::vector<Eigen::Vector3d>& points,
-                   const std::vector<std::array<std::uint8_t, 3>>& colours);
+                   const std::vector<std::array<std::uint8_t, 3>>& colours, double res = 0.0,
+                   long long tile_voxels = 0);
 
 // Median ground sample distance (m) of the registered images: depth of their
 // sparse points over focal length.

@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "libphoto/base/error.h"
+#include "libphoto/export/cell_heights.h"
 
 namespace aerotri {
 
@@ -62,22 +63,31 @@ Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& 
   r.wkt = wkt;
   r.nodata = o.nodata;
   // Heights per cell, then the median.
-  std::vector<std::vector<float>> cells(static_cast<size_t>(r.width) * r.height);
-  for (const auto& p : xyz) {
+  const size_t num_cells = static_cast<size_t>(r.width) * r.height;
+  CellHeights cells(num_cells);
+  auto cell_of = [&](const Eigen::Vector3d& p) -> long long {
     const int cx = static_cast<int>((p.x() - x0) / res);
     const int cy = static_cast<int>((y1 - p.y()) / res);
-    if (cx < 0 || cy < 0 || cx >= r.width || cy >= r.height) continue;
-    cells[static_cast<size_t>(cy) * r.width + cx].push_back(static_cast<float>(p.z()));
+    if (cx < 0 || cy < 0 || cx >= r.width || cy >= r.height) return -1;
+    return static_cast<long long>(cy) * r.width + cx;
+  };
+  for (const auto& p : xyz) {
+    const long long c = cell_of(p);
+    if (c >= 0) cells.Count(static_cast<size_t>(c));
   }
-  r.values.assign(cells.size(), static_cast<float>(o.nodata));
+  cells.Allocate();
+  for (const auto& p : xyz) {
+    const long long c = cell_of(p);
+    if (c >= 0) cells.Add(static_cast<size_t>(c), static_cast<float>(p.z()));
+  }
+  r.values.assign(num_cells, static_cast<float>(o.nodata));
   long long with_data = 0;
-  for (size_t c = 0; c < cells.size(); ++c) {
-    auto& v = cells[c];
-    if (v.empty()) continue;
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    r.values[c] = v[v.size() / 2];
+  for (size_t c = 0; c < num_cells; ++c) {
+    if (cells.empty(c)) continue;
+    float* mid = cells.begin(c) + cells.size(c) / 2;
+    std::nth_element(cells.begin(c), mid, cells.end(c));
+    r.values[c] = *mid;
     ++with_data;
-    std::vector<float>().swap(v);
   }
   long long filled = 0;
   if (o.fill_max_distance_m > 0) {

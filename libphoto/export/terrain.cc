@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "libphoto/base/error.h"
+#include "libphoto/export/cell_heights.h"
 #include "libphoto/export/dsm.h"
 
 namespace aerotri {
@@ -101,21 +102,28 @@ std::vector<std::uint8_t> ClassifyGround(const std::vector<Eigen::Vector3d>& xyz
   }
 
   // 1. Minimum surface: the 5th percentile of each cell's heights.
-  std::vector<std::vector<float>> heights(static_cast<size_t>(nx) * ny);
-  for (size_t i = 0; i < xyz.size(); ++i) {
-    if (isolated[i]) continue;
-    const auto [x, y] = cell_of(xyz[i]);
-    heights[static_cast<size_t>(y) * nx + x].push_back(static_cast<float>(xyz[i].z()));
-  }
   cv::Mat zmin(ny, nx, CV_32F, cv::Scalar(kNodata));
-  for (int y = 0; y < ny; ++y) {
-    for (int x = 0; x < nx; ++x) {
-      auto& h = heights[static_cast<size_t>(y) * nx + x];
-      if (h.empty()) continue;
-      const size_t k = h.size() / 20;
-      std::nth_element(h.begin(), h.begin() + k, h.end());
-      zmin.at<float>(y, x) = h[k];
-      std::vector<float>().swap(h);
+  {
+    CellHeights heights(static_cast<size_t>(nx) * ny);
+    for (size_t i = 0; i < xyz.size(); ++i) {
+      if (isolated[i]) continue;
+      const auto [x, y] = cell_of(xyz[i]);
+      heights.Count(static_cast<size_t>(y) * nx + x);
+    }
+    heights.Allocate();
+    for (size_t i = 0; i < xyz.size(); ++i) {
+      if (isolated[i]) continue;
+      const auto [x, y] = cell_of(xyz[i]);
+      heights.Add(static_cast<size_t>(y) * nx + x, static_cast<float>(xyz[i].z()));
+    }
+    for (int y = 0; y < ny; ++y) {
+      for (int x = 0; x < nx; ++x) {
+        const size_t cell = static_cast<size_t>(y) * nx + x;
+        if (heights.empty(cell)) continue;
+        float* k = heights.begin(cell) + heights.size(cell) / 20;
+        std::nth_element(heights.begin(cell), k, heights.end(cell));
+        zmin.at<float>(y, x) = *k;
+      }
     }
   }
   const cv::Mat empty = zmin == kNodata;
@@ -176,27 +184,35 @@ Raster RasterizeDtm(const std::vector<Eigen::Vector3d>& xyz, const std::vector<s
   if (classes.size() != xyz.size()) throw InvalidArgument("DTM: one class per point is needed");
   Raster dtm = dsm;
   const float nd = static_cast<float>(dsm.nodata);
-  std::vector<std::vector<float>> cells(dsm.values.size());
   const double x0 = dsm.geotransform[0], y0 = dsm.geotransform[3];
   const double dx = dsm.geotransform[1], dy = -dsm.geotransform[5];
-  for (size_t i = 0; i < xyz.size(); ++i) {
-    if (classes[i] != kGround) continue;
+  auto cell_of = [&](size_t i) -> long long {
+    if (classes[i] != kGround) return -1;
     const int cx = static_cast<int>(std::floor((xyz[i].x() - x0) / dx));
     const int cy = static_cast<int>(std::floor((y0 - xyz[i].y()) / dy));
-    if (cx < 0 || cy < 0 || cx >= dsm.width || cy >= dsm.height) continue;
-    cells[static_cast<size_t>(cy) * dsm.width + cx].push_back(static_cast<float>(xyz[i].z()));
+    if (cx < 0 || cy < 0 || cx >= dsm.width || cy >= dsm.height) return -1;
+    return static_cast<long long>(cy) * dsm.width + cx;
+  };
+  CellHeights cells(dsm.values.size());
+  for (size_t i = 0; i < xyz.size(); ++i) {
+    const long long c = cell_of(i);
+    if (c >= 0) cells.Count(static_cast<size_t>(c));
+  }
+  cells.Allocate();
+  for (size_t i = 0; i < xyz.size(); ++i) {
+    const long long c = cell_of(i);
+    if (c >= 0) cells.Add(static_cast<size_t>(c), static_cast<float>(xyz[i].z()));
   }
   DtmSummary s;
-  for (size_t k = 0; k < cells.size(); ++k) {
-    auto& h = cells[k];
-    if (h.empty()) {
+  for (size_t k = 0; k < dsm.values.size(); ++k) {
+    if (cells.empty(k)) {
       dtm.values[k] = nd;
       continue;
     }
-    std::nth_element(h.begin(), h.begin() + h.size() / 2, h.end());
-    dtm.values[k] = h[h.size() / 2];
+    float* mid = cells.begin(k) + cells.size(k) / 2;
+    std::nth_element(cells.begin(k), mid, cells.end(k));
+    dtm.values[k] = *mid;
     ++s.cells_ground;
-    std::vector<float>().swap(h);
   }
   if (s.cells_ground == 0) throw InvalidArgument("DTM: no ground points");
   const std::vector<float> filled = FilledNodata(dtm, std::max(dtm.width, dtm.height) + 1.0, work_dir);

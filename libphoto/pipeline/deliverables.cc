@@ -102,17 +102,18 @@ GeoFrame DeliverableFrame(const json& report, const json& dense) {
 
 // ENU points to the output CRS on all cores (a Crs per thread: PROJ objects
 // are not shared across threads).
-std::vector<Eigen::Vector3d> ToCrs(const std::vector<Eigen::Vector3d>& enu, const GeoFrame& g, unsigned threads) {
-  std::vector<Eigen::Vector3d> out(enu.size());
+// ENU points to the CRS in place (the cloud is the largest thing in memory:
+// no second copy of it).
+void ToCrsInPlace(std::vector<Eigen::Vector3d>* points, const GeoFrame& g, unsigned threads) {
+  std::vector<Eigen::Vector3d>& xyz = *points;
   auto work = [&](size_t begin, size_t end) {
     const Crs crs = Crs::FromString(g.crs.definition());
-    for (size_t i = begin; i < end; ++i) out[i] = crs.FromGeodetic(g.frame.GeodeticFromEnu(enu[i]));
+    for (size_t i = begin; i < end; ++i) xyz[i] = crs.FromGeodetic(g.frame.GeodeticFromEnu(xyz[i]));
   };
-  const size_t chunk = (enu.size() + threads - 1) / std::max(1u, threads);
+  const size_t chunk = (xyz.size() + threads - 1) / std::max(1u, threads);
   ParallelFor(threads, threads, [&](size_t t) {
-    work(std::min(enu.size(), t * chunk), std::min(enu.size(), (t + 1) * chunk));
+    work(std::min(xyz.size(), t * chunk), std::min(xyz.size(), (t + 1) * chunk));
   });
-  return out;
 }
 
 double DsmResolution(const PipelineOptions& o, double cloud_resolution) {
@@ -657,7 +658,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   d.num_threads = o.num_threads;
   d.work_dir = o.workspace / "depth";
   DenseSummary summary;
-  const DenseCloud cloud = ComputeDenseCloud(
+  DenseCloud cloud = ComputeDenseCloud(
       model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
       StageProgress(o, "dense"), &summary);
   if (cloud.positions.empty()) {
@@ -681,8 +682,11 @@ bool RunDenseStage(const PipelineOptions& o) {
   std::string heights;
   const GeoFrame deliverable{g.frame, DeliverableCrs(g, o, &heights)};
   CrsCloud out;
-  out.xyz = ToCrs(cloud.positions, deliverable, Threads(o));
-  out.rgb = cloud.colours;
+  const double cloud_resolution = cloud.resolution_m;
+  out.xyz = std::move(cloud.positions);
+  ToCrsInPlace(&out.xyz, deliverable, Threads(o));
+  out.rgb = std::move(cloud.colours);
+  cloud = DenseCloud();
   out.crs_wkt = deliverable.crs.WktV1();
   out.crs_name = deliverable.crs.Name();
   // Ground and above-ground (SMRF), then the surfaces.
@@ -698,7 +702,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   WritePly(out, ply);
   json dsm_info;
   const std::string status = report.value("status", "");
-  const Raster dsm_raster = WriteDsm(out.xyz, deliverable.crs, DsmResolution(o, cloud.resolution_m), o, status,
+  const Raster dsm_raster = WriteDsm(out.xyz, deliverable.crs, DsmResolution(o, cloud_resolution), o, status,
                                      heights, dsm, &dsm_info);
   json dtm_info = json::object(), contour_info = json::object(), ground_info = json::object();
   if (classify && ground.ground > 0) {
@@ -743,7 +747,7 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"pairs_failed", summary.pairs_failed},
                       {"depth_points", summary.depth_points},
                       {"points", out.xyz.size()},
-                      {"resolution_m", cloud.resolution_m},
+                      {"resolution_m", cloud_resolution},
                       {"min_views", d.min_views},
                       {"tiles", summary.tiles},
                       {"crs", deliverable.crs.definition()},
@@ -757,7 +761,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
   RemoveDepthMaps(o);  // fused: nothing reads them now
   fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
-  Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud.resolution_m) +
+  Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud_resolution) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
              std::to_string(dsm_info["height"].get<int>()) + "; " + heights);
   RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
