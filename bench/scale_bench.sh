@@ -7,7 +7,8 @@
 # RMSE and the workspace's size without its deliverables.
 # Usage: bench/scale_bench.sh [photos ...]   (default: 100 250 500 1000)
 # Env: BENCH_WORK (default /tmp/aerotri_scale_bench), KEEP=1 keeps workspaces,
-# AEROTRI=path runs another binary (e.g. a copy, while rebuilding).
+# AEROTRI=path runs another binary (e.g. a copy of build/tools/aerotri and
+# aerotri-photo, side by side, while rebuilding).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 exe="${AEROTRI:-$(pwd)/build/tools/aerotri}"

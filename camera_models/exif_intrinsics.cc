@@ -46,6 +46,7 @@ FocalEstimate FocalFromExif(const ExifOptics& o) {
                               ? static_cast<double>(o.width) / *o.exif_pixel_width
                               : 1.0;
     e.focal_px = *o.focal_mm * *o.focal_plane_px_per_mm * resize;
+    e.pixel_size_mm = 1.0 / (*o.focal_plane_px_per_mm * resize);
     e.basis = FocalBasis::kFocalPlane;
     e.source = Format("EXIF focal length %.2f mm and focal-plane resolution (%.1f px/mm)",
                       *o.focal_mm, *o.focal_plane_px_per_mm);
@@ -54,6 +55,7 @@ FocalEstimate FocalFromExif(const ExifOptics& o) {
   if (o.focal_mm && *o.focal_mm > 0) {
     if (const auto sensor = KnownSensorWidthMm(o.make, o.model)) {
       e.focal_px = *o.focal_mm / *sensor * longer;
+      e.pixel_size_mm = *sensor / longer;
       e.basis = FocalBasis::kSensorTable;
       e.source = Format("EXIF focal length %.2f mm, known sensor width %.2f mm", *o.focal_mm, *sensor);
       return e;

@@ -36,6 +36,10 @@ struct FocalEstimate {
   double focal_px = 0.0;  // for the stored image size
   FocalBasis basis = FocalBasis::kGuess;
   std::string source;     // for people: the rule and its EXIF values
+  // The pixel pitch at the stored image size (mm) where EXIF states it (the
+  // focal-plane resolution) or the sensor is known; 0 otherwise (a 35 mm
+  // equivalent says nothing physical about the sensor).
+  double pixel_size_mm = 0.0;
   bool Measured() const { return basis == FocalBasis::kFocalPlane || basis == FocalBasis::kSensorTable; }
 };
 

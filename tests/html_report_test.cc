@@ -4,6 +4,7 @@
 // points, timings), readable axes, and charts that stay readable on a
 // 500-image survey.
 #include "libphoto/report/html_report.h"
+#include "libphoto/report/report_json.h"
 
 #include <gtest/gtest.h>
 
@@ -166,6 +167,32 @@ TEST(HtmlReport, CameraCalibrationTieTracksAndTimings) {
   EXPECT_NE(html.find("100 tie points, measured in 3.50 images on average"), std::string::npos);
   EXPECT_NE(html.find("<td>tie points</td><td>40</td><td>30</td>"), std::string::npos);
   EXPECT_NE(html.find("<tr class='total'><td>total</td><td>64.6</td>"), std::string::npos);
+}
+
+// With the pixel pitch from EXIF, the calibration in mm: c = f p, x0 and y0
+// from the image centre with y up, sigmas scaled alike; without it, none.
+TEST(HtmlReport, CalibrationInMillimetresWhereThePixelPitchIsKnown) {
+  json adjustment = {
+      {"intrinsics",
+       {{{"camera", 1}, {"width", 1000}, {"height", 750},
+         {"params", {{"f", 800.0}, {"cx", 509.5}, {"cy", 364.5}, {"k1", -0.1}}}},
+        {{"camera", 2}, {"width", 1000}, {"height", 750}, {"params", {{"f", 800.0}, {"cx", 499.5}, {"cy", 374.5}}}}}},
+      {"intrinsics_precision", {{{"camera", 1}, {"sigma", {{"f", 0.5}, {"cx", 0.25}, {"cy", 0.2}}}}}}};
+  AddIntrinsicsInMm(&adjustment, {0.0064, 0.0});
+  const json& mm = adjustment["intrinsics"][0]["mm"];
+  EXPECT_DOUBLE_EQ(mm["c_mm"].get<double>(), 5.12);
+  EXPECT_DOUBLE_EQ(mm["x0_mm"].get<double>(), 10.0 * 0.0064);   // right of the centre
+  EXPECT_DOUBLE_EQ(mm["y0_mm"].get<double>(), 10.0 * 0.0064);   // above it: cy is 10 px up the image
+  EXPECT_DOUBLE_EQ(mm["sigma_c_mm"].get<double>(), 0.0032);
+  EXPECT_DOUBLE_EQ(mm["sigma_y0_mm"].get<double>(), 0.2 * 0.0064);
+  EXPECT_FALSE(adjustment["intrinsics"][1].contains("mm"));  // pitch unknown
+  json r = Images(5, true);
+  r["adjustment"] = adjustment;
+  const std::string html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("pixel pitch 6.400 &micro;m from EXIF): camera constant c 5.1200 &plusmn; 0.0032 mm, "
+                      "principal point x0 0.0640 &plusmn; 0.0016 mm, y0 0.0640 &plusmn; 0.0013 mm"),
+            std::string::npos)
+      << html.substr(html.find("Camera calibration"), 1500);
 }
 
 TEST(HtmlReport, DsmPreviewHasALegendAndAScaleBar) {

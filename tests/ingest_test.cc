@@ -158,9 +158,12 @@ TEST(ExifIntrinsics, FallsBackInOrderAndSaysSo) {
   o.focal_plane_px_per_mm = 16393.4 / 25.4;  // Canon ELPH 300 HS, 4000 px wide originally
   o.exif_pixel_width = 4000;
   EXPECT_NEAR(FocalFromExif(o).focal_px, 4.3 * 16393.4 / 25.4 * 0.9, 1e-9);
+  // The pitch of the stored (resized) image: 1 / (645.4 px/mm) at 4000 px wide, x 4000 / 3600.
+  EXPECT_NEAR(FocalFromExif(o).pixel_size_mm, 25.4 / 16393.4 / 0.9, 1e-12);
   o.focal_plane_px_per_mm.reset();
   o.focal_35mm = 24;
   EXPECT_NEAR(FocalFromExif(o).focal_px, 24.0 / 36.0 * 3600, 1e-9);
+  EXPECT_EQ(FocalFromExif(o).pixel_size_mm, 0.0);  // a 35 mm equivalent states no sensor
   o.focal_35mm.reset();
   o.focal_mm.reset();
   const FocalEstimate guess = FocalFromExif(o);

@@ -159,6 +159,15 @@ TEST_F(Pipeline, PhotosAndControlToACentimetreSurvey) {
   EXPECT_EQ(report["check_points"]["count"], 4);
   EXPECT_LT(report["check_points"]["rmse_3d_m"].get<double>(), 0.08) << report["adjustment"]["intrinsics"].dump() << report["adjustment"]["datum"] << report["adjustment"]["final_rms_px"];
   EXPECT_GT(report["check_points"]["rmse_3d_m"].get<double>(), 0.003);
+  // The calibration in mm, with the pitch from EXIF's focal-plane resolution
+  // (the rendered sensor is 6.4 mm wide): c is the adjusted f in mm.
+  {
+    const auto& camera = report["adjustment"]["intrinsics"][0];
+    ASSERT_TRUE(camera.contains("mm")) << camera.dump();
+    EXPECT_NEAR(camera["mm"]["pixel_size_mm"].get<double>() * camera["width"].get<double>(), 6.4, 1e-3);
+    EXPECT_NEAR(camera["mm"]["c_mm"].get<double>(),
+                camera["params"]["f"].get<double>() * camera["mm"]["pixel_size_mm"].get<double>(), 1e-9);
+  }
   // The ingest warnings name the bad files.
   const std::string warnings = report["ingest_warnings"].dump();
   EXPECT_NE(warnings.find("broken.jpg"), std::string::npos);

@@ -158,6 +158,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
       g.camera = Camera::Create(CameraModelId::kBrown, focal.focal_px * ww / m.width, ww, wh);
       g.focal_source = focal.source;
       g.focal_measured = focal.Measured();
+      g.pixel_size_mm = focal.pixel_size_mm * m.width / ww;
       r.groups.push_back(g);
       if (!focal.Measured()) r.warnings.push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
     }
@@ -283,6 +284,7 @@ json ToJson(const IngestRecord& r) {
                       {"focal_source", g.focal_source},
                       {"focal_measured", g.focal_measured},
                       {"images", g.images}});
+    if (g.pixel_size_mm > 0) groups.back()["pixel_size_mm"] = g.pixel_size_mm;
   }
   json doc;
   doc["schema_version"] = IngestRecord::kSchemaVersion;
@@ -327,6 +329,7 @@ IngestRecord IngestRecordFromJson(const json& doc, const std::string& path) {
       c.focal_measured = g.contains("focal_measured") ? g.at("focal_measured").get<bool>()
                                                       : c.focal_source.rfind("EXIF focal length", 0) == 0;
       c.images = g.value("images", 0);
+      c.pixel_size_mm = g.value("pixel_size_mm", 0.0);
       r.groups.push_back(c);
     }
     for (const json& j : doc.at("images")) {

@@ -59,6 +59,9 @@ struct CameraGroup {
   Camera camera;            // initial intrinsics, working px (BROWN)
   std::string focal_source;  // for people
   bool focal_measured = false;  // EXIF measured f (a prior to hold), not a guess
+  // Pixel pitch at the working resolution (mm), where EXIF gives it; 0:
+  // unknown. The report states the calibration in mm with it.
+  double pixel_size_mm = 0.0;
   int images = 0;
 };
 

@@ -368,6 +368,11 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["provenance"] = Provenance(o, ingest.record.options);
   const json ingest_doc = ToJson(ingest.record);
   report["camera_groups"] = ingest_doc.at("groups");
+  {
+    std::vector<double> pixel_size_mm;  // camera id k is group k - 1
+    for (const CameraGroup& g : ingest.record.groups) pixel_size_mm.push_back(g.pixel_size_mm);
+    if (report.contains("adjustment")) AddIntrinsicsInMm(&report["adjustment"], pixel_size_mm);
+  }
   report["ingest_warnings"] = ingest_doc.at("warnings");
 
   // The survey's status: the adjustment's findings, photos left out, input

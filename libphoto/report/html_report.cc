@@ -590,6 +590,16 @@ std::string CameraCalibration(const json& r) {
         << (sigma.contains(name) ? Num(Get(sigma, name.c_str()), d) : std::string("held")) << "</td></tr>";
     }
     h << "</table>";
+    if (g.contains("mm")) {
+      const json& mm = g["mm"];
+      auto with_sigma = [&](const char* value, const char* s) {
+        return Num(Get(mm, value), 4) + (mm.contains(s) ? " &plusmn; " + Num(Get(mm, s), 4) : std::string()) + " mm";
+      };
+      h << "<p>In the photogrammetric convention (pixel pitch " << Num(Get(mm, "pixel_size_mm") * 1000.0, 3)
+        << " &micro;m from EXIF): camera constant c " << with_sigma("c_mm", "sigma_c_mm") << ", principal point x0 "
+        << with_sigma("x0_mm", "sigma_x0_mm") << ", y0 " << with_sigma("y0_mm", "sigma_y0_mm")
+        << " (from the image centre, y up the image).</p>";
+    }
     const json& curve = g.value("distortion_curve", json::object());
     const auto radius = curve.value("radius_px", std::vector<double>{});
     const auto radial = curve.value("radial_px", std::vector<double>{});

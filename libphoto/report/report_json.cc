@@ -164,6 +164,33 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
   return j;
 }
 
+void AddIntrinsicsInMm(nlohmann::json* adjustment, const std::vector<double>& pixel_size_mm) {
+  if (!adjustment->contains("intrinsics")) return;
+  for (nlohmann::json& c : (*adjustment)["intrinsics"]) {
+    const int id = c.value("camera", 0);
+    if (id < 1 || id > static_cast<int>(pixel_size_mm.size()) || !(pixel_size_mm[id - 1] > 0)) continue;
+    const nlohmann::json& p = c.at("params");
+    if (!p.contains("f") || !p.contains("cx") || !p.contains("cy")) continue;
+    const double pitch = pixel_size_mm[id - 1];
+    const double w = c.value("width", 0), h = c.value("height", 0);
+    nlohmann::json mm = {
+        {"pixel_size_mm", pitch},
+        {"c_mm", p["f"].get<double>() * pitch},
+        {"x0_mm", (p["cx"].get<double>() - 0.5 * (w - 1)) * pitch},
+        {"y0_mm", -(p["cy"].get<double>() - 0.5 * (h - 1)) * pitch},
+        {"convention", "c: camera constant; x0, y0: principal point from the image centre, x right, y up the "
+                       "image; distortion coefficients as in params (unit-free)"}};
+    for (const nlohmann::json& q : adjustment->value("intrinsics_precision", nlohmann::json::array())) {
+      if (q.value("camera", 0) != id || !q.contains("sigma")) continue;
+      const nlohmann::json& s = q["sigma"];
+      if (s.contains("f")) mm["sigma_c_mm"] = s["f"].get<double>() * pitch;
+      if (s.contains("cx")) mm["sigma_x0_mm"] = s["cx"].get<double>() * pitch;
+      if (s.contains("cy")) mm["sigma_y0_mm"] = s["cy"].get<double>() * pitch;
+    }
+    c["mm"] = mm;
+  }
+}
+
 std::string ExteriorOrientationCsv(const GeoreferenceReport& r) {
   std::ostringstream out;
   out << "# exterior orientation, aerotri\n"

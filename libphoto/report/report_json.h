@@ -35,6 +35,13 @@ namespace aerotri {
 
 nlohmann::json FindingsJson(const std::vector<Finding>& findings, Severity severity);
 nlohmann::json BundleSummaryJson(const BundleSummary& summary, const SparseModel& model);
+// Adds to each of adjustment["intrinsics"] whose camera (id k) has a known
+// pixel pitch (pixel_size_mm[k - 1] > 0, working resolution) its calibration
+// in the photogrammetric convention, "mm": camera constant c, principal
+// point x0, y0 from the image centre with y up the image, their posterior
+// sigmas (from adjustment["intrinsics_precision"]), the pitch and k1-k3,
+// p1, p2 as they are (unit-free on pixel-normalised coordinates).
+void AddIntrinsicsInMm(nlohmann::json* adjustment, const std::vector<double>& pixel_size_mm);
 nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& report, const SparseModel& model);
 
 // exterior_orientation.csv: one line per registered image, the centre in
