@@ -171,10 +171,11 @@ struct BundleOptions {
   bool compute_diagnostics = true;
 
   // After the solve, the a-priori covariance of each camera group's refined
-  // intrinsics and of their correlation with the camera heights (Ceres
-  // Covariance, SPARSE_QR over the whole Jacobian): BundleSummary::
+  // intrinsics and of their correlation with the camera heights (the
+  // reduced camera system of bundle_precision.h: points eliminated, a dense
+  // inverse over cameras and intrinsics): BundleSummary::
   // intrinsics_precision. Skipped (with the reason) above
-  // max_covariance_residuals residuals, where the QR would cost minutes.
+  // max_covariance_residuals residuals.
   bool compute_intrinsics_covariance = false;
   int max_covariance_residuals = 3000000;
 

@@ -28,13 +28,13 @@ RowSparse ToEigen(const ceres::CRSMatrix& crs) {
   return m;
 }
 
-// The rows [r0, r1) of a row-major matrix split into the columns [c0, c0+3)
-// (dense, rows x 3) and the columns from `first` on (dense over the listed
-// columns `cols`, which the function fills in ascending order).
-void SplitRows(const RowSparse& j, int r0, int r1, int c0, int first, Eigen::MatrixXd* a,
+// Rows of a row-major matrix split into the columns [c0, c0+3) (dense,
+// rows x 3) and the columns from `first` on (dense over the listed columns
+// `cols`, which the function fills in ascending order).
+void SplitRows(const RowSparse& j, const std::vector<int>& rows, int c0, int first, Eigen::MatrixXd* a,
                std::vector<int>* cols, Eigen::MatrixXd* b) {
   std::map<int, int> index;
-  for (int r = r0; r < r1; ++r) {
+  for (int r : rows) {
     for (RowSparse::InnerIterator it(j, r); it; ++it) {
       if (it.col() >= first) index.emplace(it.col() - first, 0);
     }
@@ -44,17 +44,25 @@ void SplitRows(const RowSparse& j, int r0, int r1, int c0, int first, Eigen::Mat
     k = static_cast<int>(cols->size());
     cols->push_back(c);
   }
-  a->setZero(r1 - r0, 3);
-  b->setZero(r1 - r0, static_cast<Eigen::Index>(cols->size()));
-  for (int r = r0; r < r1; ++r) {
-    for (RowSparse::InnerIterator it(j, r); it; ++it) {
+  a->setZero(static_cast<Eigen::Index>(rows.size()), 3);
+  b->setZero(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(cols->size()));
+  for (size_t k = 0; k < rows.size(); ++k) {
+    for (RowSparse::InnerIterator it(j, rows[k]); it; ++it) {
       if (it.col() >= first) {
-        (*b)(r - r0, index[it.col() - first]) = it.value();
+        (*b)(k, index[it.col() - first]) = it.value();
       } else if (it.col() >= c0 && it.col() < c0 + 3) {
-        (*a)(r - r0, it.col() - c0) = it.value();
+        (*a)(k, it.col() - c0) = it.value();
       }
     }
   }
+}
+
+// The rows [r0, r1).
+void SplitRows(const RowSparse& j, int r0, int r1, int c0, int first, Eigen::MatrixXd* a, std::vector<int>* cols,
+               Eigen::MatrixXd* b) {
+  std::vector<int> rows;
+  for (int r = r0; r < r1; ++r) rows.push_back(r);
+  SplitRows(j, rows, c0, first, a, cols, b);
 }
 
 Eigen::MatrixXd Gather(const Eigen::MatrixXd& m, const std::vector<int>& rows, const std::vector<int>& cols) {
@@ -137,35 +145,43 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   }
   const RowSparse j = ToEigen(crs);
   crs = ceres::CRSMatrix();
-  const Eigen::SparseMatrix<double, Eigen::ColMajor, int> jc = j;
-  const Eigen::SparseMatrix<double, Eigen::ColMajor, int> jp_t = jc.leftCols(n3).transpose();
-  const Eigen::SparseMatrix<double, Eigen::ColMajor, int> jr = jc.rightCols(nc);
-  // V (block diagonal) and W in row-major form for per-point access.
-  const RowSparse v = (jp_t * jc.leftCols(n3)).pruned();
-  const RowSparse w = (jp_t * jr).pruned();
-  Eigen::MatrixXd s = Eigen::MatrixXd(jr.transpose() * jr);
+  // S = Jrᵀ Jr − Σ_p W_pᵀ V_p⁻¹ W_p. V_p and W_p are accumulated from the
+  // rows of J that hold point p (a residual holds at most one point), never
+  // as sparse products over all points: Eigen's pruned sparse product costs
+  // a pass over every point column per column (hours at 100,000 points).
+  Eigen::MatrixXd s;
+  {
+    const Eigen::SparseMatrix<double, Eigen::ColMajor, int> jr =
+        Eigen::SparseMatrix<double, Eigen::ColMajor, int>(j).rightCols(nc);
+    s = Eigen::MatrixXd(jr.transpose() * jr);
+  }
+  std::vector<std::vector<int>> rows_of_point(np);
+  for (int r = 0; r < j.rows(); ++r) {
+    for (RowSparse::InnerIterator it(j, r); it; ++it) {
+      if (it.col() < n3) {
+        rows_of_point[it.col() / 3].push_back(r);
+        break;
+      }
+    }
+  }
 
   std::vector<PointCoupling> coupling(np);
   for (int pt = 0; pt < np; ++pt) {
-    Eigen::Matrix3d vp = Eigen::Matrix3d::Zero();
-    for (int r = 0; r < 3; ++r) {
-      for (RowSparse::InnerIterator it(v, 3 * pt + r); it; ++it) {
-        if (it.col() >= 3 * pt && it.col() < 3 * pt + 3) vp(r, it.col() - 3 * pt) = it.value();
-      }
-    }
+    Eigen::MatrixXd a, b;
+    PointCoupling& c = coupling[pt];
+    SplitRows(j, rows_of_point[pt], 3 * pt, n3, &a, &c.cols, &b);
+    const Eigen::Matrix3d vp = a.transpose() * a;
     Eigen::FullPivLU<Eigen::Matrix3d> lu(vp);
     if (lu.rank() < 3) {
       out.note = "a point's position is not determined by its observations (rays parallel)";
       return out;
     }
-    PointCoupling& c = coupling[pt];
     c.v_inv = lu.inverse();
-    Eigen::MatrixXd unused_a, wp;
-    SplitRows(w, 3 * pt, 3 * pt + 3, /*c0=*/-10, /*first=*/0, &unused_a, &c.cols, &wp);
+    const Eigen::MatrixXd wp = a.transpose() * b;
     c.t = c.v_inv * wp;
     const Eigen::MatrixXd update = wp.transpose() * c.t;
-    for (size_t a = 0; a < c.cols.size(); ++a) {
-      for (size_t b = 0; b < c.cols.size(); ++b) s(c.cols[a], c.cols[b]) -= update(a, b);
+    for (size_t x = 0; x < c.cols.size(); ++x) {
+      for (size_t y = 0; y < c.cols.size(); ++y) s(c.cols[x], c.cols[y]) -= update(x, y);
     }
   }
 
