@@ -7,6 +7,7 @@
 # RMSE and the workspace's size without its deliverables.
 # Usage: bench/scale_bench.sh [photos ...]   (default: 100 250 500 1000)
 # Env: BENCH_WORK (default /tmp/aerotri_scale_bench), KEEP=1 keeps workspaces,
+# REUSE=1 reuses surveys rendered by an earlier KEEP=1 run,
 # AEROTRI=path runs another binary (e.g. a copy of build/tools/aerotri and
 # aerotri-photo, side by side, while rebuilding).
 set -euo pipefail
@@ -26,11 +27,16 @@ for n in "${sizes[@]}"; do
     w = sqrt(n * 480 * 4 / 3); c = int(n / 25); k = int(n / 40);
     printf "%.0f %.0f %d %d\n", w, 0.75 * w, (c < 8 ? 8 : (c > 100 ? 100 : c)), (k < 6 ? 6 : (k > 100 ? 100 : k)) }')
   sim="$work/sim_$n" ws="$work/ws_$n"
-  rm -rf "$sim" "$ws"
+  rm -rf "$ws"
   t0=$(date +%s.%N)
-  "$exe" simulate -o "$sim" --seed 7 --width 1200 --height 900 --area-width "$w" --area-height "$h" \
-    --control "$control" --checks "$checks" --quiet >/dev/null
-  t1=$(date +%s.%N)
+  if [ -n "${REUSE:-}" ] && [ -d "$sim/images" ]; then
+    t0=0; t1=0  # rendered by an earlier run (render_s 0)
+  else
+    rm -rf "$sim"
+    "$exe" simulate -o "$sim" --seed 7 --width 1200 --height 900 --area-width "$w" --area-height "$h" \
+      --control "$control" --checks "$checks" --quiet >/dev/null
+    t1=$(date +%s.%N)
+  fi
   "$exe" run "$sim/images" --gcp "$sim/gcp_list.txt" --checkpoints "$sim/checkpoints.txt" -o "$ws" \
     --leave-one-out off --quiet >"$work/run_$n.txt" || true
   /usr/bin/python3 - "$ws" "$n" "$(awk -v a="$t0" -v b="$t1" 'BEGIN{print b - a}')" <<'PY'

@@ -14,6 +14,7 @@ packages=(
   libgtest-dev googletest
   libcli11-dev nlohmann-json3-dev libbz2-dev
   time
+  snakemake
 )
 
 missing=()

@@ -142,6 +142,8 @@ struct RunArgs {
   bool keep_going = false;
   bool keep_depth_maps = false;
   bool force = false;
+  int parts = 4;               // split
+  double seam_margin_m = 0.0;  // split; 0: automatic
   int threads = 0;
   std::string gps_altitude = "egm96";
   double gps_sigma_h_m = kDefaultGpsSigmaH;

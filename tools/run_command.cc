@@ -10,10 +10,20 @@
 #include "libphoto/base/directory_lock.h"
 #include "libphoto/base/error.h"
 #include "libphoto/pipeline/pipeline.h"
+#include "libphoto/pipeline/survey_split.h"
 #include "tools/commands.h"
 
 namespace aerotri {
 namespace {
+
+// The aerotri front end beside this executable (what a workflow should call).
+std::filesystem::path AerotriExecutable() {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) return "aerotri";
+  const std::filesystem::path front = self.parent_path() / "aerotri";
+  return std::filesystem::exists(front) ? front : self;
+}
 
 void AddDsmOptions(CLI::App* cmd, RunArgs* a) {
   cmd->add_option("--dsm-resolution", a->dsm_resolution_m,
@@ -195,6 +205,37 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
   }
   {
     auto a = std::make_shared<RunArgs>();
+    a->stage = "split";
+    a->policy.leave_one_out = "on";
+    CLI::App* cmd = app.add_subcommand(
+        "split", "Split a survey by GPS into overlapping parts reconstructed on their own, merged and adjusted "
+                 "once: ingests the photos, writes OUTPUT/parts/ and OUTPUT/Snakefile (run it with snakemake)");
+    AddStageOptions(cmd, a.get(), /*images_positional=*/true, kIngestOptions | kThreadsOption);
+    cmd->add_option("--parts", a->parts, "Number of parts (by recursive bisection of the GPS positions)")
+        ->check(CLI::Range(2, 10000))->capture_default_str();
+    cmd->add_option("--seam-margin", a->seam_margin_m,
+                    "Photos within this distance (metres) of a part's cell join it, shared with its neighbour; "
+                    "0 = 2.5 x the median distance between neighbouring photos")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    cmd->add_option("--gcp", a->gcp, "Ground control points for the global adjustment (OpenDroneMap gcp_list.txt)");
+    cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format)");
+    AddGcpPixelOriginOption(cmd, a.get());
+    cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
+    cmd->add_option("--leave-one-out", a->policy.leave_one_out, "Leave-one-out over the control points")
+        ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+    cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
+  }
+  {
+    auto a = std::make_shared<RunArgs>();
+    a->stage = "merge";
+    CLI::App* cmd = app.add_subcommand(
+        "merge", "Merge the parts of a split survey (OUTPUT/parts/*/ws/reconstruction) into OUTPUT/reconstruction/ "
+                 "for the global adjustment (georeference)");
+    AddWorkspaceOption(cmd, &a->output, /*must_exist=*/true);
+    cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
+  }
+  {
+    auto a = std::make_shared<RunArgs>();
     a->stage = "check";
     CLI::App* cmd = app.add_subcommand(
         "check", "Accuracy of an existing survey against check points: rewrites OUTPUT/report.json and report.html");
@@ -285,6 +326,20 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
     return 0;
   } else if (s == "check") {
     CheckSurvey(o);
+  } else if (s == "split") {
+    RunIngestStage(o);
+    const std::vector<SurveyPart> parts = SplitSurvey(o, SplitOptions{a.parts, a.seam_margin_m});
+    WriteSplitWorkflow(o, parts, AerotriExecutable());
+    for (const SurveyPart& p : parts) {
+      *ctx.out << "part=" << p.name << " photos=" << p.images.size() << " own=" << p.core << "\n";
+    }
+    *ctx.out << "snakefile=" << (std::filesystem::path(a.output) / "Snakefile").string() << "\n";
+    return 0;
+  } else if (s == "merge") {
+    const MergeSummary m = RunMergeStage(o);
+    *ctx.out << "parts=" << m.parts << " photos=" << m.images << " shared_photos=" << m.shared_images
+             << " tie_points=" << m.points << " joined_points=" << m.merged_points << "\n";
+    return 0;
   }
   if (s == "run" || s == "georeference" || s == "report" || s == "check") {
     // An RMSE over no check points is not a figure: "nan", never a reassuring 0.0000.
