@@ -50,19 +50,27 @@ SparseModel Part(const SparseModel& model, double x0, double x1, double s, const
   return part;
 }
 
-TEST(SurveySplit, PartsInTheirOwnFramesMergeIntoOneModel) {
+// A block of tie points only, and the east extent of its camera centres.
+SyntheticSurvey TieBlock(std::uint32_t seed, int ties, double* lo, double* hi) {
   SyntheticSurveyOptions so;
-  so.seed = 3;
-  so.num_tie_points = 1500;
+  so.seed = seed;
+  so.num_tie_points = ties;
   so.num_control_points = 0;
   so.num_check_points = 0;
-  const SyntheticSurvey survey = MakeSyntheticSurvey(so);
-  const SparseModel& truth = survey.observed;
-  double lo = 1e300, hi = -1e300;
-  for (const Image& im : truth.images) {
-    lo = std::min(lo, im.pose.centre_in_world.x());
-    hi = std::max(hi, im.pose.centre_in_world.x());
+  SyntheticSurvey survey = MakeSyntheticSurvey(so);
+  *lo = 1e300;
+  *hi = -1e300;
+  for (const Image& im : survey.observed.images) {
+    *lo = std::min(*lo, im.pose.centre_in_world.x());
+    *hi = std::max(*hi, im.pose.centre_in_world.x());
   }
+  return survey;
+}
+
+TEST(SurveySplit, PartsInTheirOwnFramesMergeIntoOneModel) {
+  double lo = 0.0, hi = 0.0;
+  const SyntheticSurvey survey = TieBlock(3, 1500, &lo, &hi);
+  const SparseModel& truth = survey.observed;
   const double third = (hi - lo) / 3.0, seam = 0.3 * third;
   const Eigen::Quaterniond r1(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, -0.3, 1.0).normalized()));
   const Eigen::Quaterniond r2(Eigen::AngleAxisd(-1.9, Eigen::Vector3d(0.5, 0.1, 1.0).normalized()));
@@ -114,17 +122,8 @@ TEST(SurveySplit, PartsInTheirOwnFramesMergeIntoOneModel) {
 }
 
 TEST(SurveySplit, APartSharingTooFewPhotosIsNamedNotPlaced) {
-  SyntheticSurveyOptions so;
-  so.seed = 4;
-  so.num_tie_points = 600;
-  so.num_control_points = 0;
-  so.num_check_points = 0;
-  const SyntheticSurvey survey = MakeSyntheticSurvey(so);
-  double lo = 1e300, hi = -1e300;
-  for (const Image& im : survey.observed.images) {
-    lo = std::min(lo, im.pose.centre_in_world.x());
-    hi = std::max(hi, im.pose.centre_in_world.x());
-  }
+  double lo = 0.0, hi = 0.0;
+  const SyntheticSurvey survey = TieBlock(4, 600, &lo, &hi);
   const double mid = 0.5 * (lo + hi);
   const std::vector<SparseModel> parts = {
       Part(survey.observed, lo - 1.0, mid, 1.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero()),
