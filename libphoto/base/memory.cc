@@ -2,6 +2,9 @@
 #include "libphoto/base/memory.h"
 
 #include <sys/resource.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <atomic>
@@ -59,6 +62,12 @@ bool ResetPeakRss() {
   out << "5";
   out.flush();
   return static_cast<bool>(out);
+}
+
+void ReleaseFreedMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
 }
 
 }  // namespace aerotri

@@ -30,5 +30,9 @@ double ProcessPeakRssMb();
 // kernel refuses (no /proc, a restricted container): PeakRssMb() then stays
 // the process's peak, and callers should say so.
 bool ResetPeakRss();
+// Hands the heap's free pages back to the kernel (glibc malloc_trim; a
+// no-op elsewhere): after a large structure built of many mid-sized blocks
+// is freed, so that the next one does not stack on top of it.
+void ReleaseFreedMemory();
 
 }  // namespace aerotri

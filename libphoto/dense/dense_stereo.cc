@@ -14,6 +14,7 @@
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/memory.h"
 #include "libphoto/base/parallel.h"
 
 namespace aerotri {
@@ -454,6 +455,10 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
     cloud.colours.insert(cloud.colours.end(), part.colours.begin(), part.colours.end());
     cloud.views.insert(cloud.views.end(), part.views.begin(), part.views.end());
     part = DenseCloud();
+    // A tile's arrays below glibc's (dynamic, up to 32 MB) mmap threshold
+    // come from the heap, and free() keeps those pages: without handing
+    // them back as they are copied, resident memory reaches two clouds.
+    ReleaseFreedMemory();
   }
   s->fused_points = static_cast<long long>(cloud.positions.size());
   return cloud;
