@@ -100,10 +100,9 @@ GeoFrame DeliverableFrame(const json& report, const json& dense) {
   return g;
 }
 
-// ENU points to the output CRS on all cores (a Crs per thread: PROJ objects
-// are not shared across threads).
-// ENU points to the CRS in place (the cloud is the largest thing in memory:
-// no second copy of it).
+// ENU points to the output CRS, in place (the cloud is the largest thing in
+// memory: no second copy of it), on all cores (a Crs per thread: PROJ
+// objects are not shared across threads).
 void ToCrsInPlace(std::vector<Eigen::Vector3d>* points, const GeoFrame& g, unsigned threads) {
   std::vector<Eigen::Vector3d>& xyz = *points;
   auto work = [&](size_t begin, size_t end) {

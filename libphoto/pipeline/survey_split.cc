@@ -172,13 +172,9 @@ void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>&
   json plan = {{"parts", json::array()}, {"images_dir", photos.string()}};
   for (const SurveyPart& part : parts) {
     const fs::path dir = o.workspace / "parts" / part.name / "images";
+    fs::remove_all(dir);  // links of an earlier split: a part holds exactly its photos
     fs::create_directories(dir);
-    for (const std::string& name : part.images) {
-      const fs::path link = dir / name;
-      std::error_code ec;
-      fs::remove(link, ec);
-      fs::create_symlink(photos / name, link);
-    }
+    for (const std::string& name : part.images) fs::create_symlink(photos / name, dir / name);
     plan["parts"].push_back({{"name", part.name}, {"images", part.images}, {"core", part.core}});
   }
   WriteTextFileAtomically(o.workspace / "parts" / "plan.json", plan.dump(2) + "\n");
