@@ -6,9 +6,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
+#include <set>
 
 #include "georef/gcp_file.h"
+#include "georef/tie_point_file.h"
+#include "libphoto/adjust/camera_file.h"
 #include "libphoto/adjust/georeferencing.h"
+#include "libphoto/adjust/initial_orientation.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/directory_lock.h"
 #include "libphoto/base/error.h"
@@ -27,10 +32,20 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
   CLI::App* cmd = app.add_subcommand(
       "adjust",
       "Georeference and adjust an existing reconstruction (COLMAP text model, any frame and "
-      "scale) with GPS priors and ground control; writes OUTPUT/model (COLMAP text, local ENU "
-      "metres) and OUTPUT/report.json with check-point accuracy");
-  cmd->add_option("--model", a->model_dir, "COLMAP text model folder (cameras.txt, images.txt, points3D.txt)")
-      ->required()->check(CLI::ExistingDirectory);
+      "scale), or image measurements alone (--measurements, a classic aerial triangulation), with "
+      "GPS priors and ground control; writes OUTPUT/model (COLMAP text, local ENU metres) and "
+      "OUTPUT/report.json with check-point accuracy");
+  CLI::Option* model =
+      cmd->add_option("--model", a->model_dir, "COLMAP text model folder (cameras.txt, images.txt, points3D.txt)")
+          ->check(CLI::ExistingDirectory);
+  CLI::Option* measurements =
+      cmd->add_option("--measurements", a->measurements,
+                      "Tie-point measurements instead of a model: lines 'image point im_x im_y [sigma_px=S]' "
+                      "(pixels as --gcp-pixel-origin); with --camera-file (width, height, f) and --gcp: "
+                      "initial values by space resection and forward intersection, then the bundle")
+          ->check(CLI::ExistingFile);
+  model->excludes(measurements);
+  measurements->excludes(model);
   cmd->add_option("--images", a->images_dir, "Folder of the model's images, for their EXIF GPS")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--gcp", a->gcp, "Ground control points, OpenDroneMap gcp_list.txt format");
@@ -74,12 +89,45 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
   cmd->add_option("--max-iterations", a->max_iterations, "Maximum solver iterations per round")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--output,-o", a->output, "Output folder")->required();
-  cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunAdjust(*a, ctx); }; });
+  measurements->needs(cmd->get_option("--camera-file"));
+  cmd->callback([a, run]() {
+    if (a->model_dir.empty() && a->measurements.empty()) {
+      throw CLI::RequiredError("--model (a reconstruction) or --measurements (tie points, with --camera-file)");
+    }
+    *run = [a](ToolContext& ctx) { return RunAdjust(*a, ctx); };
+  });
 }
+
+namespace {
+
+// The initial orientation of a block from measurements, for report.json.
+nlohmann::json InitialOrientationJson(const InitialOrientationReport& r) {
+  nlohmann::json images = nlohmann::json::array();
+  for (const ImageOrientationResult& i : r.images) {
+    images.push_back({{"name", i.name}, {"oriented", i.oriented}, {"how", i.how}, {"round", i.round}});
+  }
+  return {{"seed", r.seed},
+          {"control_frame", r.control_frame},
+          {"images_measured", r.images.size()},
+          {"images_oriented", r.oriented},
+          {"tie_points", r.tie_points},
+          {"tie_points_intersected", r.tie_points_intersected},
+          {"rounds", r.rounds},
+          {"suspect_marks", r.suspect_marks},
+          {"images", images}};
+}
+
+}  // namespace
 
 int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   const fs::path output(args.output);
-  if (fs::exists(output) && fs::equivalent(output, args.model_dir)) {
+  if (args.model_dir.empty() && args.measurements.empty()) {
+    throw InvalidArgument("give --model (a reconstruction) or --measurements (tie points, with --camera-file)");
+  }
+  if (!args.measurements.empty() && args.policy.camera_file.empty()) {
+    throw InvalidArgument("--measurements needs --camera-file (the camera's width, height and f at least)");
+  }
+  if (!args.model_dir.empty() && fs::exists(output) && fs::equivalent(output, args.model_dir)) {
     throw InvalidArgument("--output must differ from --model: inputs are never modified");
   }
   if (args.images_dir.empty() && args.gps_csv.empty() && args.gcp.empty()) {
@@ -102,24 +150,49 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;
 
-  ctx.Info("reading model " + args.model_dir);
-  SparseModel model = ReadColmapText(args.model_dir);
-  ctx.Info("model: " + std::to_string(model.cameras.size()) + " cameras, " +
-           std::to_string(model.images.size()) + " images, " +
-           std::to_string(model.points.size()) + " points, " +
-           std::to_string(model.observations.size()) + " observations");
+  const PixelOrigin origin = args.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
+  // From measurements: every input read and checked before anything is
+  // computed; the model comes from the initial orientation below.
+  SparseModel model;
+  TiePointFile ties;
+  std::optional<GcpFile> control;
+  std::optional<Camera> certificate;
+  std::vector<std::string> names;  // the images, for their GPS
+  if (!args.model_dir.empty()) {
+    ctx.Info("reading model " + args.model_dir);
+    model = ReadColmapText(args.model_dir);
+    ctx.Info("model: " + std::to_string(model.cameras.size()) + " cameras, " +
+             std::to_string(model.images.size()) + " images, " +
+             std::to_string(model.points.size()) + " points, " +
+             std::to_string(model.observations.size()) + " observations");
+    for (const Image& image : model.images) names.push_back(image.name);
+  } else {
+    ties = ReadTiePointFile(args.measurements, origin);
+    certificate = ReadCameraFile(args.policy.camera_file).ToCamera();
+    if (!args.gcp.empty()) {
+      control = ReadGcpFile(args.gcp, origin);
+      CheckGcpFileCrs(*control);
+    }
+    std::set<std::string> unique;
+    for (const TieMeasurement& m : ties.measurements) unique.insert(m.image);
+    if (control) {
+      for (const GroundPoint& g : control->points) {
+        for (const GcpMeasurement& m : g.measurements) unique.insert(m.image);
+      }
+    }
+    names.assign(unique.begin(), unique.end());
+    ctx.Info("measurements: " + std::to_string(ties.measurements.size()) + " tie marks on " +
+             std::to_string(names.size()) + " images");
+  }
 
   const AltitudeReference reference =
       args.gps_altitude == "ellipsoid" ? AltitudeReference::kEllipsoid : AltitudeReference::kEgm96;
   std::map<std::string, GpsFix> gps;
   std::vector<std::string> warnings;
   if (!args.images_dir.empty()) {
-    std::vector<std::string> names;
-    for (const Image& image : model.images) names.push_back(image.name);
     gps = GpsFromImages(names, args.images_dir, reference, args.gps_sigma_h_m, args.gps_sigma_v_m,
                         &warnings);
-    ctx.Info("EXIF GPS: " + std::to_string(gps.size()) + " of " +
-             std::to_string(model.images.size()) + " images");
+    ctx.Info("EXIF GPS: " + std::to_string(gps.size()) + " of " + std::to_string(names.size()) + " images");
   }
   // Gimbal angles (DJI XMP), to check the adjusted attitudes against.
   std::map<std::string, GimbalAttitude> gimbal;
@@ -140,11 +213,21 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
     for (const auto& [name, fix] : csv) gps[name] = fix;
     ctx.Info("GPS CSV: " + std::to_string(csv.size()) + " positions (override EXIF)");
   }
+  std::optional<InitialOrientationReport> initial;
+  if (certificate) {
+    initial.emplace();
+    model = OrientFromMeasurements(*certificate, ties, control ? &*control : nullptr, gps, {}, &*initial);
+    ctx.Info("initial orientation: " + initial->seed + "; " + std::to_string(initial->oriented) + " of " +
+             std::to_string(initial->images.size()) + " images oriented, " +
+             std::to_string(initial->tie_points_intersected) + " of " + std::to_string(initial->tie_points) +
+             " tie points intersected");
+    for (const std::string& w : initial->warnings) warnings.push_back(args.measurements + ": " + w);
+  }
   SurveyAdjustmentInputs inputs;
   inputs.gps = std::move(gps);
   inputs.gcp = args.gcp;
   inputs.checkpoints = args.checkpoints;
-  inputs.gcp_pixel_origin = args.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
+  inputs.gcp_pixel_origin = origin;
   inputs.camera_file = args.policy.camera_file;
   inputs.input_warnings = warnings;
   inputs.gimbal = std::move(gimbal);
@@ -155,6 +238,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
 
   WriteColmapText(model, output / "model");
   nlohmann::json json = GeoreferenceReportJson(report, model);
+  if (initial) json["initial_orientation"] = InitialOrientationJson(*initial);
   WriteTextFileAtomically(output / "report.json", json.dump(2) + "\n");
   WriteCameraProducts(report, model, output);
   ctx.Info(report.bundle.BriefReport());

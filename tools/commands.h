@@ -79,6 +79,7 @@ int RunBal(const BalArgs& args, ToolContext& ctx);
 
 struct AdjustArgs {
   std::string model_dir;
+  std::string measurements;  // tie-point file: AT from measurements, no model
   std::string images_dir;
   std::string gcp;
   std::string checkpoints;

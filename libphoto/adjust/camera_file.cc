@@ -50,9 +50,20 @@ CameraFile ReadCameraFile(const std::filesystem::path& path) {
       file.pixel_size_mm = *v;
       continue;
     }
+    if (w[0] == "width" || w[0] == "height") {
+      const auto v = w.size() == 2 ? Number(w[1]) : std::nullopt;
+      if (!v || *v < 1.0 || *v != std::floor(*v) || *v > 1e6) {
+        throw ParseError(file.path, number, "expected '" + w[0] + " N' with N a whole number of pixels, got '" +
+                                                line + "'");
+      }
+      (w[0] == "width" ? file.width : file.height) = static_cast<int>(*v);
+      if (!file.size_line) file.size_line = number;
+      continue;
+    }
     if (std::find(kNames.begin(), kNames.end(), w[0]) == kNames.end()) {
       throw ParseError(file.path, number, "unknown parameter '" + w[0] +
-                                              "'; expected units, pixel_size_mm, f, x0, y0, cx, cy, k1, k2, k3, p1 or p2");
+                                              "'; expected units, pixel_size_mm, width, height, f, x0, y0, cx, cy, "
+                                              "k1, k2, k3, p1 or p2");
     }
     CameraFileValue v;
     v.name = w[0];
@@ -92,7 +103,28 @@ CameraFile ReadCameraFile(const std::filesystem::path& path) {
   if (file.millimetres && !(file.pixel_size_mm > 0.0)) {
     throw ParseError(file.path, 0, "'units mm' needs pixel_size_mm");
   }
+  if ((file.width > 0) != (file.height > 0)) {
+    throw ParseError(file.path, file.size_line, "expected both 'width' and 'height' (pixels), or neither");
+  }
   return file;
+}
+
+Camera CameraFile::ToCamera() const {
+  if (width <= 0) {
+    throw InvalidArgument(path + ": the camera file needs 'width' and 'height' (pixels) to adjust from "
+                                 "measurements alone");
+  }
+  const auto f = std::find_if(values.begin(), values.end(), [](const CameraFileValue& v) { return v.name == "f"; });
+  if (f == values.end()) {
+    throw InvalidArgument(path + ": the camera file needs 'f' (the camera constant) to adjust from measurements "
+                                 "alone");
+  }
+  const double focal_px = f->value / (millimetres ? pixel_size_mm : 1.0);
+  SparseModel model;
+  model.cameras.push_back(Camera::Create(CameraModelId::kBrown, focal_px, width, height, 1));
+  BundleOptions unused;
+  ApplyCameraFile(*this, &model, &unused);
+  return model.cameras[0];
 }
 
 void ApplyCameraFile(const CameraFile& file, SparseModel* model, BundleOptions* options,
@@ -103,6 +135,15 @@ void ApplyCameraFile(const CameraFile& file, SparseModel* model, BundleOptions* 
     const double scale = c < full_from_working.size() && full_from_working[c] > 0.0 ? full_from_working[c] : 1.0;
     // Millimetres or full-resolution pixels per working pixel.
     const double pix = (file.millimetres ? file.pixel_size_mm : 1.0) * scale;
+    // The working size is rounded: up to a working pixel either way.
+    const double slack = std::max(1.0, scale);
+    if (file.width > 0 && (std::abs(camera.width * scale - file.width) > slack ||
+                           std::abs(camera.height * scale - file.height) > slack)) {
+      throw InvalidArgument(file.path + ":" + std::to_string(file.size_line) + ": the certificate is for " +
+                            std::to_string(file.width) + " x " + std::to_string(file.height) + " px images; camera " +
+                            std::to_string(camera.id) + " is " + std::to_string(std::lround(camera.width * scale)) +
+                            " x " + std::to_string(std::lround(camera.height * scale)) + " px");
+    }
     for (const CameraFileValue& v : file.values) {
       // In pixels, with the parameter it sets.
       std::string name = v.name;

@@ -6,6 +6,9 @@
 //
 //   units mm              px (default) or mm
 //   pixel_size_mm 0.006   required with mm
+//   width 11310           image size in pixels: needed to adjust from
+//   height 17310            measurements alone (no model to take it from);
+//                           with a model, checked against it
 //   f 120.0 sigma 0.002   camera constant (mm) or focal length (px)
 //   x0 0.011 sigma 0.002  mm: principal point offset from the image centre,
 //   y0 -0.005 fixed         x right, y up (the fiducial convention)
@@ -41,7 +44,16 @@ struct CameraFile {
   std::string path;
   bool millimetres = false;
   double pixel_size_mm = 0.0;
+  int width = 0;   // px; 0: not given
+  int height = 0;
+  int size_line = 0;  // the line of width / height, for errors
   std::vector<CameraFileValue> values;
+
+  // The camera the certificate describes, on its own (no model): the Brown
+  // model at width x height with the file's values (held or prior values
+  // as starts). Throws InvalidArgument naming the file when it lacks
+  // width, height or f.
+  Camera ToCamera() const;
 };
 
 CameraFile ReadCameraFile(const std::filesystem::path& path);
@@ -51,7 +63,8 @@ CameraFile ReadCameraFile(const std::filesystem::path& path);
 // full-resolution pixels; full_from_working[c] (default 1) is camera c's
 // full / working size ratio, when the model is at a reduced resolution.
 // Throws InvalidArgument naming the file and line when a parameter is not
-// in a camera's model.
+// in a camera's model, or when the file's width / height are not the
+// camera's full-resolution size.
 void ApplyCameraFile(const CameraFile& file, SparseModel* model, BundleOptions* options,
                      const std::vector<double>& full_from_working = {});
 

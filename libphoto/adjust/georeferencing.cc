@@ -982,6 +982,9 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   if (options.auto_refine) bundle.refine_intrinsics = IntrinsicsRefinement::kAll;
 
   GpsVersusControl& versus = report.gps_vs_control;
+  // Observations the adjustment on control alone rejected left the model
+  // before the final solve: counted in its figure, never hidden.
+  int outliers_before_final = 0;
   if (control_datum && !gps_images.empty()) {
     // GPS minus the camera centres of an adjustment held by the control
     // alone; a constant part is an offset (antenna, height reference), the
@@ -995,6 +998,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     // suffices (weakly held intrinsics converge slowly without the GPS).
     control_only.function_tolerance = std::max(bundle.function_tolerance, 1e-6);
     const BundleSummary control_summary = AdjustBundle(model, control_only);
+    outliers_before_final = control_summary.outliers_removed;
     if (!control_summary.converged) {
       report.findings.push_back(Finding::Warning(
           "ADJUSTMENT_NOT_CONVERGED",
@@ -1173,6 +1177,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
           weak));
     }
   }
+  report.bundle.outliers_removed += outliers_before_final;
   for (auto& [index, prior] : rejected_gps) model->images[index].gps_prior = prior;
   // What the receiver should have read for an image, as adjusted: its
   // antenna, plus the GPS offset and the flight's drift where estimated.

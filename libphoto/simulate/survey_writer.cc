@@ -132,6 +132,28 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
     for (Point& point : model.points) point.position = s * (q * point.position) + t;
     WriteColmapText(model, dir / "model");
   }
+  // The same tie points as image measurements, and the camera as a
+  // calibration certificate: a classic aerial triangulation's inputs
+  // (aerotri adjust --measurements, camera_file.h).
+  {
+    const SparseModel& model = scene.tie_model;
+    std::ostringstream ties;
+    ties << "# image point im_x im_y (px, centre of the top-left pixel at 0, 0)\n" << std::setprecision(10);
+    for (const Observation& obs : model.observations) {
+      ties << model.images[obs.image].name << " t" << model.points[obs.point].id << " " << obs.xy.x() << " "
+           << obs.xy.y() << "\n";
+    }
+    WriteTextFileAtomically(dir / "measurements.txt", ties.str());
+    const CameraModelInfo& info = GetCameraModelInfo(CameraModelId::kBrown);
+    std::ostringstream cam;
+    cam << "# calibration certificate of the simulated camera (pixels)\nunits px\nwidth " << options.survey.width
+        << "\nheight " << options.survey.height << "\n" << std::setprecision(12);
+    for (size_t k = 0; k < info.param_names.size() && k < options.survey.brown_params.size(); ++k) {
+      const std::string& name = info.param_names[k];
+      cam << name << " " << options.survey.brown_params[k] << "\n";
+    }
+    WriteTextFileAtomically(dir / "camera.txt", cam.str());
+  }
   WriteColmapText(truth, dir / "truth" / "model");
 
   // Truth DEM in the output CRS over the area (with a margin).

@@ -11,6 +11,9 @@
 //   gps.csv              the same noisy GPS as the EXIF (name,lat,lon,alt)
 //   geo.txt              the same again as OpenDroneMap's geo.txt (output
 //                        CRS, EGM96 altitudes for a 2D CRS, accuracies)
+//   measurements.txt     the model's tie points as image measurements
+//                        (image point im_x im_y: aerotri adjust --measurements)
+//   camera.txt           the true camera as a calibration certificate (px)
 //   model/               the tie-point model in an arbitrary frame and scale
 //                        (COLMAP text), as another tool would export it
 //   truth/model/         exact cameras and points in ENU (COLMAP text)
