@@ -13,7 +13,9 @@
 // explicit choice; EGM96 heights become ellipsoidal through PROJ's
 // egm96_15.gtx (h = H + N).
 
+#include <Eigen/Core>
 #include <limits>
+#include <optional>
 #include <string>
 
 #include "georef/local_frame.h"
@@ -37,6 +39,13 @@ struct GpsFix {
   // Capture time (seconds on the camera's clock, any epoch; only differences
   // are used: the GNSS drift model, flights split at long gaps). NaN: unknown.
   double time_s = std::numeric_limits<double>::quiet_NaN();
+  // A camera position surveyed in a local engineering frame (a geo.txt whose
+  // CRS line is LOCAL): its coordinates in the file's unit. position then
+  // holds them on the frame's stand-in (Crs::IsLocal), good for distances
+  // only; the adjustment places them in the control's local frame, and
+  // refuses them beside geodetic control.
+  std::optional<Eigen::Vector3d> local_xyz;
+  double local_unit_m = 1.0;
 };
 
 // Converts an altitude in the given reference to WGS84 ellipsoidal height.

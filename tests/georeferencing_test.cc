@@ -731,6 +731,57 @@ TEST(Georeferencing, LocalFrameRefusesGeodeticInputs) {
   }
 }
 
+// Camera positions surveyed in the same local frame as the control (a
+// geo.txt whose CRS is LOCAL) are accepted and placed in that frame: the
+// adjusted cameras sit within the GPS noise of them, not hundreds of
+// kilometres off; beside geodetic control they are refused.
+TEST(Georeferencing, CameraPositionsInTheLocalFrameAreUsedThere) {
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(103), {});
+  GcpFile control = scene.control;  // UTM numbers, read as a local Cartesian frame
+  control.crs = "LOCAL";
+  GcpFile checks = scene.checks;
+  checks.crs = "LOCAL";
+  const Crs utm = Crs::FromString("EPSG:32632");
+  std::map<std::string, GpsFix> local_gps = scene.gps;
+  for (auto& [name, fix] : local_gps) {
+    fix.local_xyz = utm.FromGeodetic(fix.position);
+    fix.position = {};  // no geodesy
+  }
+  SparseModel model = ArbitraryFrame(scene.tie_model, 103);
+  GeoreferenceOptions options = Options();
+  options.output_crs.clear();
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, local_gps, &control, &checks, options);
+  EXPECT_TRUE(r.bundle.converged) << r.bundle.termination;
+  EXPECT_EQ(r.bundle.num_gps_priors, static_cast<int>(local_gps.size()));
+  double h2 = 0.0, v2 = 0.0;
+  int n = 0;
+  for (const CameraResult& c : r.cameras) {
+    if (!c.has_prior) continue;
+    const Eigen::Vector3d d = c.position_crs - *local_gps.at(c.name).local_xyz;
+    h2 += 0.5 * d.head<2>().squaredNorm();
+    v2 += d.z() * d.z();
+    ++n;
+  }
+  ASSERT_GT(n, 20);
+  const double rms_h = std::sqrt(h2 / n), rms_v = std::sqrt(v2 / n);
+  std::printf("adjusted cameras minus local positions: %.2f m per horizontal axis, %.2f m vertical (noise 2 / 4 m)\n",
+              rms_h, rms_v);
+  EXPECT_GT(rms_h, 0.6 * 2.0);
+  EXPECT_LT(rms_h, 1.4 * 2.0);
+  EXPECT_GT(rms_v, 0.6 * 4.0);
+  EXPECT_LT(rms_v, 1.4 * 4.0);
+  EXPECT_LT(r.check_stats.rmse_3d_m, 0.1);
+
+  SparseModel again = ArbitraryFrame(scene.tie_model, 103);
+  try {
+    GeoreferenceAndAdjust(&again, local_gps, &scene.control, nullptr, Options());
+    ADD_FAILURE() << "local camera positions accepted beside geodetic control";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("is in a local engineering frame and the control is not"),
+              std::string::npos)
+        << e.what();
+  }
+}
 
 // An RTK block (2 / 3 cm GNSS) whose antenna positions carry a constant
 // offset of 2 / 2 / 10 cm: estimated with its posterior sigma, the offset is

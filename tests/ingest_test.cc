@@ -126,6 +126,13 @@ TEST(GpsSources, OpenDroneMapGeoTxtInAnyCrs) {
   const GpsFix compound = ReadGpsFile(dir / "geo.txt", AltitudeReference::kEllipsoid, 3.0, 5.0).at("A.JPG");
   EXPECT_NEAR(compound.position.h_m, 550.0934, 1e-3);
   EXPECT_NEAR(compound.position.lat_deg, 46.5, 1e-8);
+  // A local engineering frame: the file's own coordinates and unit, no
+  // altitude reference applied.
+  std::ofstream(dir / "geo.txt") << "LOCAL\nA.JPG 1000.5 2000.25 150\n";
+  const GpsFix local = ReadGpsFile(dir / "geo.txt", AltitudeReference::kEgm96, 3.0, 5.0).at("A.JPG");
+  ASSERT_TRUE(local.local_xyz.has_value());
+  EXPECT_EQ(*local.local_xyz, Eigen::Vector3d(1000.5, 2000.25, 150.0));
+  EXPECT_EQ(local.local_unit_m, 1.0);
 
   struct Case {
     std::string text;
@@ -137,7 +144,6 @@ TEST(GpsSources, OpenDroneMapGeoTxtInAnyCrs) {
            {"EPSG:32632\nA.JPG 384902.8 5150696.3 500 0 0 0 0.02\n", 2, "expected both horz_accuracy"},
            {"EPSG:32632\nA.JPG 384902.8 north 500\n", 2, "expected a number for geo_y (column 3), got 'north'"},
            {"EPSG:32632\nA.JPG 384902.8 5150696.3 500 0 0 0 0 0.05\n", 2, "expected positive accuracies"},
-           {"LOCAL\nA.JPG 1 2 3\n", 1, "local engineering frame"},
            {"EPSG:32632\nA.JPG 1 2 3\nA.JPG 1 2 3\n", 3, "appears twice"}}) {
     std::ofstream(dir / "bad.txt") << c.text;
     try {

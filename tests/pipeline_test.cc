@@ -493,6 +493,21 @@ TEST_F(Pipeline, ChangedOptionsRerunTheirStage) {
   for (const auto& line : log) said |= line.find("crs: \"\" -> \"EPSG:32632+5773\"") != std::string::npos;
   EXPECT_TRUE(said);
   EXPECT_EQ(nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"))["crs"], "EPSG:32632+5773");
+  // A certificate that states only the pixel pitch: the georeference reruns
+  // and states the calibration in mm with it (full-resolution pitch, scaled
+  // to the working pixels the adjustment's figures are in).
+  const fs::path pitch = o.workspace.parent_path() / "pitch_only.txt";
+  WriteTextFileAtomically(pitch, "units mm\npixel_size_mm 0.004\n");
+  o.camera_file = pitch;
+  EXPECT_TRUE(RunGeoreferenceStage(o));
+  {
+    const auto report = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+    const auto ingest = nlohmann::json::parse(ReadTextFile(o.workspace / "ingest.json"));
+    const auto& im = ingest["images"][0];
+    const double expected = 0.004 * im["width"].get<double>() / im["working_width"].get<double>();
+    EXPECT_DOUBLE_EQ(report["adjustment"]["intrinsics"][0]["mm"]["pixel_size_mm"].get<double>(), expected);
+  }
+  o.camera_file.clear();
   // Another GPS height reference: ingest reruns, and so does the georeference
   // (its input changed), which then finds the GPS 50 m from where it was.
   o.gps_altitude = AltitudeReference::kEllipsoid;

@@ -359,10 +359,12 @@ GroundPointResult EvaluateGroundPoint(const std::string& name, PointRole role,
 }
 
 GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
-                                         const std::map<std::string, GpsFix>& gps,
+                                         const std::map<std::string, GpsFix>& gps_given,
                                          const GcpFile* control, const GcpFile* checks,
                                          const GeoreferenceOptions& options) {
   AEROTRI_CHECK(model != nullptr);
+  // Camera positions in a local frame are placed in the control's below.
+  std::map<std::string, GpsFix> gps = gps_given;
   model->Validate();
   GeoreferenceReport report;
   report.initial_cameras = model->cameras;
@@ -435,10 +437,17 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       }
       unit = (*crs)->LocalUnitMetres();
     }
-    if (!gps.empty()) {
-      throw InvalidArgument("GPS positions are geodetic (EXIF, or --gps-csv latitude / longitude) and the control is "
-                            "in a local engineering frame, which has no geodetic link: adjust without GPS (no "
-                            "--images / --gps-csv), or give the control in a geodetic CRS");
+    for (const auto& [name, fix] : gps) {
+      if (!fix.local_xyz) {
+        throw InvalidArgument("GPS positions are geodetic (EXIF, or --gps-csv latitude / longitude) and the control "
+                              "is in a local engineering frame, which has no geodetic link: adjust without GPS (no "
+                              "--images / --gps-csv), give the camera positions in the same local frame (a geo.txt "
+                              "whose first line is LOCAL), or give the control in a geodetic CRS");
+      }
+      if (unit && std::abs(*unit - fix.local_unit_m) > 1e-12) {
+        throw InvalidArgument("the camera positions' local frame (image " + name +
+                              ") has another length unit than the control's");
+      }
     }
     // Coordinates about the control's centre keep the stand-in small.
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -455,6 +464,17 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     report.local_origin = mean;
     for (const auto& [what, crs] : all) {
       if (*crs) *crs = (*crs)->LocalAt(mean);
+    }
+    // Camera positions on the same stand-in as the control.
+    const Crs& frame_crs = control_crs ? *control_crs : check_crs ? *check_crs : *requested_crs;
+    for (auto& [name, fix] : gps) fix.position = frame_crs.ToGeodetic(*fix.local_xyz);
+  } else {
+    for (const auto& [name, fix] : gps) {
+      if (fix.local_xyz) {
+        throw InvalidArgument("the camera position of " + name +
+                              " is in a local engineering frame and the control is not: a local frame has no "
+                              "transformation to a geodetic CRS; give both in one frame");
+      }
     }
   }
   for (const GcpFile* file : {control, checks}) {

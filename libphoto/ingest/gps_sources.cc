@@ -98,10 +98,7 @@ std::optional<Crs> GeoTxtCrs(const std::string& line, const CrsResolver& resolve
 std::map<std::string, GpsFix> ReadGeoTxt(const std::vector<std::pair<int, std::string>>& lines, const Crs& crs,
                                          const std::string& p, int crs_line, AltitudeReference reference,
                                          double sigma_h_m, double sigma_v_m) {
-  if (crs.IsLocal()) {
-    throw ParseError(p, crs_line, "a local engineering frame has no geodetic meaning for camera GPS positions; "
-                                  "expected a geographic or projected CRS");
-  }
+  (void)crs_line;
   std::map<std::string, GpsFix> fixes;
   for (const auto& [number, line] : lines) {
     std::istringstream in(line);
@@ -137,15 +134,23 @@ std::map<std::string, GpsFix> ReadGeoTxt(const std::vector<std::pair<int, std::s
     } catch (const CrsError& e) {
       throw ParseError(p, number, std::string("cannot convert the position to WGS84: ") + e.what());
     }
-    if (!std::isfinite(g.lat_deg) || !std::isfinite(g.lon_deg) || std::abs(g.lat_deg) > 90.0) {
+    if (!crs.IsLocal() && (!std::isfinite(g.lat_deg) || !std::isfinite(g.lon_deg) || std::abs(g.lat_deg) > 90.0)) {
       throw ParseError(p, number, "the position " + f[1] + " " + f[2] + " is not a place on Earth in " + crs.Name());
     }
     if (fixes.count(f[0])) throw ParseError(p, number, "image '" + f[0] + "' appears twice");
     GpsFix fix;
     // A CRS with a vertical datum gives ellipsoidal heights through PROJ; a
     // 2D one leaves geo_z an altitude in the --gps-altitude reference.
-    fix.position = {g.lat_deg, g.lon_deg,
-                    crs.HasVerticalDatum() ? g.h_m : EllipsoidalHeight(g.lat_deg, g.lon_deg, v[3], reference)};
+    if (crs.IsLocal()) {
+      // No geodesy: the stand-in's position keeps distances for neighbour
+      // search; the adjustment takes the frame's own coordinates.
+      fix.position = g;
+      fix.local_xyz = Eigen::Vector3d(v[1], v[2], v[3]);
+      fix.local_unit_m = crs.LocalUnitMetres();
+    } else {
+      fix.position = {g.lat_deg, g.lon_deg,
+                      crs.HasVerticalDatum() ? g.h_m : EllipsoidalHeight(g.lat_deg, g.lon_deg, v[3], reference)};
+    }
     fix.sigma_h_m = v[7];
     fix.sigma_v_m = v[8];
     fix.source = "geo.txt";

@@ -371,6 +371,18 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   {
     std::vector<double> pixel_size_mm;  // camera id k is group k - 1
     for (const CameraGroup& g : ingest.record.groups) pixel_size_mm.push_back(g.pixel_size_mm);
+    // A certificate's pixel pitch wins over EXIF's (full-resolution pixels:
+    // scaled to the group's working pixels).
+    if (!o.camera_file.empty()) {
+      const CameraFile certificate = ReadCameraFile(o.camera_file);
+      if (certificate.pixel_size_mm > 0.0) {
+        for (const IngestedImage& im : ingest.record.images) {
+          if (im.group >= 0 && im.group < static_cast<int>(pixel_size_mm.size()) && im.working_width > 0) {
+            pixel_size_mm[im.group] = certificate.pixel_size_mm * im.width / im.working_width;
+          }
+        }
+      }
+    }
     if (report.contains("adjustment")) AddIntrinsicsInMm(&report["adjustment"], pixel_size_mm);
   }
   report["ingest_warnings"] = ingest_doc.at("warnings");

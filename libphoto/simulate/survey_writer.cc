@@ -132,7 +132,8 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
     for (Point& point : model.points) point.position = s * (q * point.position) + t;
     WriteColmapText(model, dir / "model");
   }
-  // The same tie points as image measurements, and the camera as a
+  // The same tie points as image measurements (but for marks off the
+  // image), and the camera as a
   // calibration certificate: a classic aerial triangulation's inputs
   // (aerotri adjust --measurements, camera_file.h).
   {
@@ -140,6 +141,11 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
     std::ostringstream ties;
     ties << "# image point im_x im_y (px, centre of the top-left pixel at 0, 0)\n" << std::setprecision(10);
     for (const Observation& obs : model.observations) {
+      // A mark pushed off the image by its noise is one nobody could measure.
+      const Camera& c = model.cameras[model.images[obs.image].camera];
+      if (obs.xy.x() < -0.5 || obs.xy.y() < -0.5 || obs.xy.x() > c.width - 0.5 || obs.xy.y() > c.height - 0.5) {
+        continue;
+      }
       ties << model.images[obs.image].name << " t" << model.points[obs.point].id << " " << obs.xy.x() << " "
            << obs.xy.y() << "\n";
     }
