@@ -17,6 +17,7 @@
 
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/point_cloud.h"
 #include "libphoto/io/colmap_text.h"
@@ -420,6 +421,35 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
   // Leave the workspace as the other tests expect it.
   o.checkpoints = dir_->path() / "survey" / "checkpoints.txt";
   CheckSurvey(o);
+
+  // aerotri check --leave-one-out: each control point withheld from the
+  // survey's own adjustment, without touching the adjusted survey.
+  ASSERT_FALSE(o.georef.leave_one_out);
+  EXPECT_FALSE(odd.at("leave_one_out").value("computed", true));
+  const std::string sparse_before = ReadTextFile(o.workspace / "sparse" / "images.txt");
+  o.georef.leave_one_out = true;
+  o.checkpoints.clear();
+  CheckSurvey(o);
+  const auto loo = nlohmann::json::parse(ReadTextFile(o.workspace / "report.json"));
+  ASSERT_TRUE(loo.at("leave_one_out").value("computed", false)) << loo.at("leave_one_out").dump();
+  EXPECT_EQ(loo["leave_one_out"]["points"].size(), loo["control_points"]["points"].size());
+  const double loo_rmse = loo["leave_one_out"]["rmse_3d_m"].get<double>();
+  std::printf("leave-one-out RMSE %.4f m, control residual RMSE %.4f m, check RMSE %.4f m\n", loo_rmse,
+              loo["control_points"]["rmse_3d_m"].get<double>(), loo["check_points"]["rmse_3d_m"].get<double>());
+  // Withheld, a control point is a check point: its error is a check point's
+  // size, larger than the residual the adjustment pulled it to.
+  EXPECT_GT(loo_rmse, loo["control_points"]["rmse_3d_m"].get<double>());
+  EXPECT_LT(loo_rmse, 3.0 * loo["check_points"]["rmse_3d_m"].get<double>());
+  EXPECT_EQ(loo["check_points"], after["check_points"]);  // the check points as they were
+  EXPECT_EQ(ReadTextFile(o.workspace / "sparse" / "images.txt"), sparse_before);
+  // Other adjustment options than the survey's: refused, naming them.
+  o.georef.gcp_sigma_h_m = 0.5;
+  try {
+    CheckSurvey(o);
+    ADD_FAILURE() << "leave-one-out under other options than the survey's";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("gcp_sigma_h_m: 0.02 -> 0.5"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(Pipeline, CompoundCrsGivesAGeoidHeightDsm) {

@@ -238,11 +238,17 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
     auto a = std::make_shared<RunArgs>();
     a->stage = "check";
     CLI::App* cmd = app.add_subcommand(
-        "check", "Accuracy of an existing survey against check points: rewrites OUTPUT/report.json and report.html");
-    AddWorkspaceOption(cmd, &a->output, /*must_exist=*/true);
-    cmd->add_option("--checkpoints", a->checkpoints, "Check points (OpenDroneMap gcp_list.txt format)")->required();
-    AddGcpPixelOriginOption(cmd, a.get());
-    cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
+        "check", "Accuracy of an existing survey: against check points (--checkpoints), and leave-one-out over "
+                 "its control points (--leave-one-out on, with --gcp and the options the survey ran with); "
+                 "rewrites OUTPUT/report.json and report.html");
+    a->policy.leave_one_out = "off";  // asked for, as it re-adjusts the survey once per control point
+    AddStageOptions(cmd, a.get(), /*images_positional=*/false, kGeoreferenceOptions | kThreadsOption);
+    cmd->callback([a, run]() {
+      if (a->checkpoints.empty() && a->policy.leave_one_out != "on") {
+        throw CLI::ValidationError("check", "give --checkpoints, --leave-one-out on (with --gcp), or both");
+      }
+      *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); };
+    });
   }
 }
 

@@ -953,9 +953,12 @@ fs::path RebuildDsm(const PipelineOptions& o, fs::path path) {
   return path;
 }
 
-void CheckSurvey(const PipelineOptions& o) {
-  if (o.checkpoints.empty()) throw InvalidArgument("check: --checkpoints is required");
-  json report = ReadJson(o.workspace / "report.json", "georeference");
+namespace {
+
+// The check points of options.checkpoints triangulated from the adjusted
+// cameras alone, into report.json's check_points and asprs.
+void CheckPointsOnSurvey(const PipelineOptions& o, json* report_out) {
+  json& report = *report_out;
   const GeoFrame g = FrameOf(report);
   const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
   IngestView ingest = LoadIngest(o);
@@ -997,6 +1000,55 @@ void CheckSurvey(const PipelineOptions& o) {
   report["asprs"] = fresh["asprs"];
   report["check_warnings"] = warnings;
   report["check_points"]["file"] = fs::absolute(o.checkpoints).string();
+}
+
+
+// Leave-one-out over the control points of a finished survey: its
+// adjustment again, from its reconstruction, with each control point in turn
+// withheld. The options and inputs must be the survey's (its recorded
+// fingerprint says which differ); the adjusted survey is left as it was.
+void LeaveOneOutOnSurvey(const PipelineOptions& o, json* report) {
+  if (o.gcp.empty()) throw InvalidArgument("check --leave-one-out: give the survey's control file (--gcp)");
+  // The check points take part only inside the bundle; otherwise any (or
+  // none) may be given to check with.
+  const json& recorded = report->value("georeference_options", json::object());
+  json now = GeoreferenceFingerprint(o);
+  json was = recorded;
+  for (const char* key : {"leave_one_out", "checkpoints"}) {
+    if (key == std::string("checkpoints") && o.georef.bundle.check_points_in_bundle) continue;
+    now.erase(key);
+    was.erase(key);
+  }
+  const std::string changed = FingerprintChanges(was, now);
+  if (!changed.empty()) {
+    throw InvalidArgument("check --leave-one-out: the survey was adjusted with other options or inputs (" +
+                          changed + "); give the ones it ran with (report.json provenance)");
+  }
+  IngestView ingest = LoadIngest(o);
+  SparseModel model = ReadColmapText(o.workspace / "reconstruction");
+  SurveyAdjustmentInputs inputs = GeoreferenceInputs(o, ingest);
+  if (!o.georef.bundle.check_points_in_bundle) inputs.checkpoints.clear();
+  GeoreferenceOptions go = GeoreferenceStageOptions(o, ingest);
+  go.leave_one_out = true;
+  go.posterior_precision = false;  // the survey's own figures stay as they are
+  const GeoreferenceReport georef = AdjustSurvey(&model, inputs, go);
+  const json fresh = GeoreferenceReportJson(georef, model);
+  (*report)["leave_one_out"] = fresh.at("leave_one_out");
+  (*report)["georeference_options"]["leave_one_out"] = true;
+  if (report->contains("provenance") && (*report)["provenance"].contains("options")) {
+    (*report)["provenance"]["options"]["georeference"]["leave_one_out"] = true;
+  }
+}
+
+}  // namespace
+
+void CheckSurvey(const PipelineOptions& o) {
+  if (o.checkpoints.empty() && !o.georef.leave_one_out) {
+    throw InvalidArgument("check: give --checkpoints, --leave-one-out on, or both");
+  }
+  json report = ReadJson(o.workspace / "report.json", "georeference");
+  if (o.georef.leave_one_out) LeaveOneOutOnSurvey(o, &report);
+  if (!o.checkpoints.empty()) CheckPointsOnSurvey(o, &report);
   WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
   PipelineOptions again = o;
   again.force = true;

@@ -276,19 +276,9 @@ SparseModel ToFullResolution(const SparseModel& model, const IngestView& ingest)
 
 }  // namespace
 
-bool RunGeoreferenceStage(const PipelineOptions& o) {
-  const fs::path report_path = o.workspace / "report.json";
-  if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") && !o.force &&
-      StageIsCurrent(o, "georeference", report_path, "georeference_options", GeoreferenceFingerprint(o))) {
-    return false;
-  }
-  const auto start = BeginStage();
-  IngestView ingest = LoadIngest(o);
-  const ReconstructionRecord recon = LoadReconstructionRecord(o);
-  SparseModel model = ReadColmapText(o.workspace / "reconstruction");
-  std::map<std::string, int> index_of_name;
-  for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
-
+// The georeference stage's inputs and options, from the workspace's ingest
+// record: one definition for the stage and for `check --leave-one-out`.
+SurveyAdjustmentInputs GeoreferenceInputs(const PipelineOptions& o, const IngestView& ingest) {
   SurveyAdjustmentInputs inputs;
   for (size_t i = 0; i < ingest.names.size(); ++i) {
     if (ingest.gps[i]) inputs.gps[ingest.names[i]] = *ingest.gps[i];
@@ -302,15 +292,36 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   inputs.checkpoints = o.checkpoints;
   inputs.gcp_pixel_origin = o.gcp_pixel_origin;
   inputs.camera_file = o.camera_file;
+  return inputs;
+}
 
+GeoreferenceOptions GeoreferenceStageOptions(const PipelineOptions& o, const IngestView& ingest) {
+  GeoreferenceOptions go = o.georef;
+  go.bundle.num_threads = o.num_threads;
+  go.bundle.focal_prior_px = ingest.focal_prior_px;
+  go.enu_origin = ingest.EnuOrigin();  // the workspace's one origin
+  go.progress = StageProgress(o, "georeference");
+  return go;
+}
+
+bool RunGeoreferenceStage(const PipelineOptions& o) {
+  const fs::path report_path = o.workspace / "report.json";
+  if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") && !o.force &&
+      StageIsCurrent(o, "georeference", report_path, "georeference_options", GeoreferenceFingerprint(o))) {
+    return false;
+  }
+  const auto start = BeginStage();
+  IngestView ingest = LoadIngest(o);
+  const ReconstructionRecord recon = LoadReconstructionRecord(o);
+  SparseModel model = ReadColmapText(o.workspace / "reconstruction");
+  std::map<std::string, int> index_of_name;
+  for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
+
+  const SurveyAdjustmentInputs inputs = GeoreferenceInputs(o, ingest);
   json report;
   const bool can_georeference = !inputs.gps.empty() || (!o.gcp.empty() && !ReadGcpFile(o.gcp, o.gcp_pixel_origin).points.empty());
   if (can_georeference && !model.images.empty()) {
-    GeoreferenceOptions go = o.georef;
-    go.bundle.num_threads = o.num_threads;
-    go.bundle.focal_prior_px = ingest.focal_prior_px;
-    go.enu_origin = ingest.EnuOrigin();  // the workspace's one origin
-    go.progress = StageProgress(o, "georeference");
+    const GeoreferenceOptions go = GeoreferenceStageOptions(o, ingest);
     const GeoreferenceReport georef = AdjustSurvey(&model, inputs, go);
     for (const Finding& f : georef.findings) {
       Log(o, std::string(f.severity == Severity::kError ? "error: " : "warning: ") + f.code + ": " +

@@ -15,6 +15,7 @@
 #include "libphoto/features/features.h"
 #include "libphoto/ingest/ingest.h"
 #include "libphoto/pipeline/pipeline.h"
+#include "libphoto/pipeline/survey_adjustment.h"
 
 namespace aerotri {
 
@@ -128,6 +129,11 @@ struct IngestView {
 
 // The ingest stage's options, from the pipeline's.
 IngestOptions IngestStageOptions(const PipelineOptions& o);
+// The georeference stage's inputs (GPS, full-resolution scales, gimbal
+// angles, control, check and camera files) and options (the workspace's ENU
+// origin, EXIF focal priors): the stage's and `check --leave-one-out`'s.
+SurveyAdjustmentInputs GeoreferenceInputs(const PipelineOptions& o, const IngestView& ingest);
+GeoreferenceOptions GeoreferenceStageOptions(const PipelineOptions& o, const IngestView& ingest);
 
 IngestView LoadIngest(const PipelineOptions& o);
 // Features of the usable images (empty for others); images whose features

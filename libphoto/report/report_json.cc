@@ -294,6 +294,7 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
     const LeaveOneOut& loo = r.leave_one_out;
     if (loo.computed) {
       nlohmann::json lj = PointsJson(loo.points, loo.stats, r.residuals_in_crs_units);
+      lj["computed"] = true;
       lj["note"] = "each control point withheld from its own adjustment and triangulated as a check point: "
                    "residuals the adjustment did not pull towards zero";
       lj["adjustments"] = loo.adjustments;
