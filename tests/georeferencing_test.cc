@@ -832,6 +832,78 @@ TEST(Georeferencing, RtkOffsetIsRecoveredAndKeptOutOfTheFocalLength) {
 }
 
 
+// Two flights (a battery change: a 20-minute gap in capture times) whose
+// RTK positions carry different offsets (each flight's base set-up or
+// antenna mount): --gps-offset per-flight recovers each within 3 sigma and
+// fits the GPS to its noise (sigma0 near 1); one shared offset cannot (sigma0
+// well above 1, the offsets' difference pushed into the GPS residuals).
+TEST(Georeferencing, EachFlightsGpsOffsetIsRecovered) {
+  SyntheticGeorefOptions rtk;
+  rtk.gps_sigma_h_m = 0.02;
+  rtk.gps_sigma_v_m = 0.03;
+  rtk.seed = 121;
+  const SyntheticGeoref scene = MakeSyntheticGeoref(SurveyOptions(121), rtk);
+  const Eigen::Vector3d offsets[2] = {{0.03, -0.02, 0.12}, {-0.04, 0.03, -0.08}};
+  std::map<std::string, GpsFix> gps = scene.gps;
+  const LocalFrame frame(rtk.origin);
+  const size_t half = gps.size() / 2;
+  size_t k = 0;
+  for (auto& [name, fix] : gps) {
+    const int flight = k < half ? 0 : 1;
+    fix.time_s = (flight == 0 ? 0.0 : 1200.0) + 2.0 * static_cast<double>(k);
+    fix.position = frame.GeodeticFromEnu(frame.EnuFromGeodetic(fix.position) + offsets[flight]);
+    ++k;
+  }
+  GeoreferenceOptions options = MatchingSigmas();
+  options.gps_offset = GpsOffsetPolicy::kPerFlight;
+  SparseModel model = ArbitraryFrame(scene.tie_model, 121);
+  const GeoreferenceReport r = GeoreferenceAndAdjust(&model, gps, &scene.control, &scene.checks, options);
+  SCOPED_TRACE(r.bundle.BriefReport());
+  ASSERT_TRUE(r.bundle.gps_offset_estimated);
+  ASSERT_EQ(r.bundle.gps_flight_offsets_m.size(), 2u);
+  ASSERT_EQ(r.bundle.precision.gps_flight_offset_cov.size(), 2u);
+  for (int f = 0; f < 2; ++f) {
+    for (int a = 0; a < 3; ++a) {
+      const double sigma = std::sqrt(r.bundle.precision.gps_flight_offset_cov[f](a, a));
+      const double e = r.bundle.gps_flight_offsets_m[f][a] - offsets[f][a];
+      std::printf("flight %d axis %d: %.4f m (truth %.4f, sigma %.4f)\n", f + 1, a, r.bundle.gps_flight_offsets_m[f][a],
+                  offsets[f][a], sigma);
+      EXPECT_GT(sigma, 0.0);
+      EXPECT_LT(sigma, 0.03);
+      EXPECT_LT(std::abs(e), 3.0 * sigma) << "flight " << f + 1 << " axis " << a;
+    }
+  }
+  for (const CameraResult& c : r.cameras) {
+    if (c.has_prior) EXPECT_EQ(c.flight, c.name < std::next(gps.begin(), half)->first ? 0 : 1) << c.name;
+  }
+  // The GPS residuals (adjusted + offset − GPS) against their sigmas.
+  const auto normalised_rms = [](const GeoreferenceReport& report) {
+    double sum = 0.0;
+    int n = 0;
+    for (const CameraResult& c : report.cameras) {
+      if (!c.has_prior || c.prior_rejected) continue;
+      sum += std::pow(c.d_enu_m.x() / c.sigma_h_m, 2) + std::pow(c.d_enu_m.y() / c.sigma_h_m, 2) +
+             std::pow(c.d_enu_m.z() / c.sigma_v_m, 2);
+      n += 3;
+    }
+    return std::sqrt(sum / n);
+  };
+  const double per_flight = normalised_rms(r);
+  std::printf("per flight: sigma0 %.3f, GPS residuals / sigma %.2f RMS\n", r.bundle.sigma0, per_flight);
+  EXPECT_GT(r.bundle.sigma0, 0.85);
+  EXPECT_LT(r.bundle.sigma0, 1.15);
+  EXPECT_GT(per_flight, 0.6);
+  EXPECT_LT(per_flight, 1.2);
+
+  options.gps_offset = GpsOffsetPolicy::kAlways;
+  SparseModel shared = ArbitraryFrame(scene.tie_model, 121);
+  const GeoreferenceReport one = GeoreferenceAndAdjust(&shared, gps, &scene.control, &scene.checks, options);
+  const double one_offset = normalised_rms(one);
+  std::printf("one shared offset: sigma0 %.3f, GPS residuals / sigma %.2f RMS\n", one.bundle.sigma0, one_offset);
+  EXPECT_TRUE(one.bundle.gps_flight_offsets_m.empty());
+  EXPECT_GT(one_offset, 1.5 * per_flight);
+}
+
 // A GNSS antenna 10 / 10 / 20 cm from the camera centre (camera frame): on a
 // lawn-mower block its horizontal part turns with the heading, so no constant
 // offset absorbs it. Stated as the lever arm, the GPS residuals fall to the

@@ -195,6 +195,28 @@ TEST(HtmlReport, CalibrationInMillimetresWhereThePixelPitchIsKnown) {
       << html.substr(html.find("Camera calibration"), 1500);
 }
 
+// The estimated GPS offsets, one per flight, with their sigmas.
+TEST(HtmlReport, GpsOffsetsPerFlightWithTheirSigmas) {
+  json r = Images(5, true);
+  r["adjustment"]["gps_offset"] = {
+      {"estimated", true},
+      {"per_flight", true},
+      {"offset", {{"e_m", 0.03}, {"n_m", -0.02}, {"u_m", 0.12}}},
+      {"flights",
+       {{{"flight", 1}, {"photos", 31}, {"offset", {{"e_m", 0.03}, {"n_m", -0.02}, {"u_m", 0.12}}},
+         {"sigma", {{"e_m", 0.007}, {"n_m", 0.009}, {"u_m", 0.021}}}},
+        {{"flight", 2}, {"photos", 32}, {"offset", {{"e_m", -0.04}, {"n_m", 0.03}, {"u_m", -0.08}}},
+         {"sigma", {{"e_m", 0.007}, {"n_m", 0.009}, {"u_m", 0.021}}}}}}};
+  r["gps_drift"] = {{"note", "no significant trend"}};
+  const std::string html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("GPS offset estimated (GPS minus camera centre, east / north / up metres, one per flight)"),
+            std::string::npos);
+  EXPECT_NE(html.find("<tr><td>2</td><td>32</td><td>-0.040</td><td>0.030</td><td>-0.080</td><td>0.007</td>"
+                      "<td>0.009</td><td>0.021</td></tr>"),
+            std::string::npos)
+      << html.substr(html.find("GPS offset"), 800);
+}
+
 TEST(HtmlReport, DsmPreviewHasALegendAndAScaleBar) {
   json r = Images(5, true);
   r["dsm"] = {{"file", "dsm.tif"}, {"width", 900}, {"height", 600}, {"resolution_m", 0.16},

@@ -536,6 +536,7 @@ TEST_F(Pipeline, ChangedOptionsRerunTheirStage) {
     const auto& im = ingest["images"][0];
     const double expected = 0.004 * im["width"].get<double>() / im["working_width"].get<double>();
     EXPECT_DOUBLE_EQ(report["adjustment"]["intrinsics"][0]["mm"]["pixel_size_mm"].get<double>(), expected);
+    EXPECT_EQ(report["adjustment"]["intrinsics"][0]["mm"]["pixel_size_source"], "the camera file");
   }
   o.camera_file.clear();
   // Another GPS height reference: ingest reruns, and so does the georeference

@@ -247,6 +247,7 @@ TEST_F(AdjustCommand, MeasurementsAndAMillimetreCertificateGiveTheModelsAdjustme
   for (const auto* r : {&ra, &rb}) {
     const auto& mm = (*r)["adjustment"]["intrinsics"][0]["mm"];
     EXPECT_EQ(mm["pixel_size_mm"].get<double>(), 0.008);
+    EXPECT_EQ(mm["pixel_size_source"], "the camera file");
     EXPECT_NEAR(mm["c_mm"].get<double>(), 6.4, 0.05);  // refined from the start value
   }
 }

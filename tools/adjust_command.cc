@@ -242,7 +242,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   // The certificate's pixel pitch states the calibration in mm as well.
   if (!args.policy.camera_file.empty() && json.contains("adjustment")) {
     const double pitch = ReadCameraFile(args.policy.camera_file).pixel_size_mm;
-    if (pitch > 0.0) AddIntrinsicsInMm(&json["adjustment"], std::vector<double>(model.cameras.size(), pitch));
+    if (pitch > 0.0) AddIntrinsicsInMm(&json["adjustment"], std::vector<double>(model.cameras.size(), pitch), "the camera file");
   }
   WriteTextFileAtomically(output / "report.json", json.dump(2) + "\n");
   WriteCameraProducts(report, model, output);

@@ -35,8 +35,9 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
       ->capture_default_str();
   cmd->add_option("--gps-offset", a->gps_offset,
                   "Constant GPS offset from the camera (antenna, height reference), estimated with 3+ "
-                  "control points: auto (when the control shows a significant one), always or never")
-      ->check(CLI::IsMember({"never", "auto", "always"}))
+                  "control points: auto (when the control shows a significant one), always, per-flight (one "
+                  "per flight, flights told apart by capture-time gaps) or never")
+      ->check(CLI::IsMember({"never", "auto", "always", "per-flight"}))
       ->capture_default_str();
   cmd->add_option("--refine", a->refine,
                   "Intrinsics refined: auto (all that the block determines; a focal length known to worse "
@@ -82,7 +83,7 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
 
 void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o) {
   const auto policy = ParseGpsOffsetPolicy(a.gps_offset);
-  if (!policy) throw InvalidArgument("--gps-offset: expected never, auto or always; got '" + a.gps_offset + "'");
+  if (!policy) throw InvalidArgument("--gps-offset: expected never, auto, always or per-flight; got '" + a.gps_offset + "'");
   o->gps_offset = *policy;
   o->auto_refine = a.refine == "auto";
   ApplyRefineOption(o->auto_refine ? "all" : a.refine, &o->bundle);

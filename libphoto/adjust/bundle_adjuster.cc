@@ -263,7 +263,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
                                    std::vector<std::array<double, 4>>& rotations,
                                    const std::vector<std::pair<ceres::ResidualBlockId, int>>& mark_blocks,
                                    const std::function<ceres::LossFunction*(double)>& loss_for, double mark_sigma,
-                                   const BundleOptions& options, double* gps_offset,
+                                   const BundleOptions& options, std::vector<Eigen::Vector3d>* gps_offsets,
                                    std::vector<Eigen::Vector3d>* gps_drift) {
   const auto start = Clock::now();
   BundlePrecision out;
@@ -295,7 +295,8 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     centre_slot[i] = add_reduced(model->images[i].pose.centre_in_world.data());
   }
   for (Camera& camera : model->cameras) add_reduced(camera.params.data());
-  const int offset_slot = add_reduced(gps_offset);
+  std::vector<int> offset_slot;
+  for (Eigen::Vector3d& o : *gps_offsets) offset_slot.push_back(add_reduced(o.data()));
   std::vector<int> drift_slot;
   for (Eigen::Vector3d& d : *gps_drift) drift_slot.push_back(add_reduced(d.data()));
 
@@ -393,9 +394,14 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     if (point_slot[p] >= 0) out.points.push_back({static_cast<int>(p), solution.point_cov[point_slot[p]]});
   }
   for (size_t k = 0; k < check_points.size(); ++k) out.points.push_back({check_points[k], solution.check_cov[k]});
-  if (offset_slot >= 0) {
+  if (!offset_slot.empty() && offset_slot[0] >= 0) {
     out.has_gps_offset = true;
-    out.gps_offset_cov = block(offset_slot);
+    out.gps_offset_cov = block(offset_slot[0]);
+  }
+  if (options.gps_offset_per_flight) {
+    for (int slot : offset_slot) {
+      out.gps_flight_offset_cov.push_back(slot >= 0 ? Eigen::Matrix3d(block(slot)) : Eigen::Matrix3d::Zero());
+    }
   }
   for (int slot : drift_slot) {
     // Held axes have no tangent: their rows and columns stay zero.
@@ -604,7 +610,7 @@ class CeresBundleProblem {
   // flight's drift rate when drift is. Without a control prior the offset
   // and the block's translation are one freedom: the offset then stays where
   // it is.
-  void AddGpsPriors(double* gps_offset, std::vector<Eigen::Vector3d>* gps_drift) {
+  void AddGpsPriors(std::vector<Eigen::Vector3d>* gps_offsets, std::vector<Eigen::Vector3d>* gps_drift) {
     if (!options_.use_gps_priors) return;
     std::set<int> drifting_flights;
     const bool lever_arm = !options_.gnss_lever_arm_m.isZero();
@@ -614,6 +620,12 @@ class CeresBundleProblem {
       const PositionPrior& p = *image.gps_prior;
       double* centre = image.pose.centre_in_world.data();
       double* rotation = blocks_->rotations[i].data();
+      // The shared offset, or the flight's own.
+      const int offset_index = gps_offsets->size() > 1 && p.flight >= 0 &&
+                                       p.flight < static_cast<int>(gps_offsets->size())
+                                   ? p.flight
+                                   : 0;
+      double* gps_offset = (*gps_offsets)[offset_index].data();
       const bool drift =
           options_.estimate_gps_drift && p.flight >= 0 && p.flight < static_cast<int>(gps_drift->size());
       if (drift) {
@@ -645,11 +657,12 @@ class CeresBundleProblem {
       }
       ++result_->num_gps;
     }
-    if (problem_.HasParameterBlock(gps_offset)) {
+    for (Eigen::Vector3d& offset : *gps_offsets) {
+      if (!problem_.HasParameterBlock(offset.data())) continue;
       if (options_.estimate_gps_offset && NumControlPriors() > 0) {
         result_->offset_estimated = true;
       } else {
-        problem_.SetParameterBlockConstant(gps_offset);
+        problem_.SetParameterBlockConstant(offset.data());
       }
     }
     // Each drifting flight's rate varies on the chosen axes only.
@@ -761,7 +774,7 @@ class CeresBundleProblem {
   }
 
   // Schur elimination order: points first, then everything else.
-  std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(double* gps_offset,
+  std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(std::vector<Eigen::Vector3d>* gps_offsets,
                                                                std::vector<Eigen::Vector3d>* gps_drift) {
     auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
     for (size_t p = 0; p < model_->points.size(); ++p) {
@@ -781,7 +794,9 @@ class CeresBundleProblem {
         ordering->AddElementToGroup(model_->cameras[c].params.data(), 1);
       }
     }
-    if (problem_.HasParameterBlock(gps_offset)) ordering->AddElementToGroup(gps_offset, 1);
+    for (Eigen::Vector3d& o : *gps_offsets) {
+      if (problem_.HasParameterBlock(o.data())) ordering->AddElementToGroup(o.data(), 1);
+    }
     for (Eigen::Vector3d& d : *gps_drift) {
       if (problem_.HasParameterBlock(d.data())) ordering->AddElementToGroup(d.data(), 1);
     }
@@ -892,11 +907,12 @@ bool SolveWithDenseSchur(SparseModel* model, const BundleOptions& options, const
 }
 
 // One solve (or, with precision_pass, the posterior precision of the
-// current state): configure, build, solve, write back. gps_offset and
-// gps_drift are the shared GPS offset and the per-flight drift rates, in and
-// out.
-RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round, double* gps_offset,
-                      std::vector<Eigen::Vector3d>* gps_drift, bool precision_pass = false) {
+// current state): configure, build, solve, write back. gps_offsets (one
+// shared, or one per flight) and gps_drift (per flight) are the GPS offsets
+// and drift rates, in and out.
+RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
+                      std::vector<Eigen::Vector3d>* gps_offsets, std::vector<Eigen::Vector3d>* gps_drift,
+                      bool precision_pass = false) {
   const auto setup_start = Clock::now();
   RoundResult result;
   const BundleConfig config = ConfigureBundle(*model, options);
@@ -922,7 +938,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
 
   CeresBundleProblem bundle(model, options, config, &blocks, &result);
   bundle.AddReprojections();
-  bundle.AddGpsPriors(gps_offset, gps_drift);
+  bundle.AddGpsPriors(gps_offsets, gps_drift);
   bundle.AddNadirPriors();
   bundle.AddIntrinsicsPriors();
   bundle.AddControlPriors();
@@ -931,7 +947,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   ceres::Problem& problem = bundle.problem();
 
   ceres::Solver::Options solver_options = SolverOptions(options, config.num_images, &result.solver);
-  if (result.num_points > 0) solver_options.linear_solver_ordering = bundle.SchurOrdering(gps_offset, gps_drift);
+  if (result.num_points > 0) solver_options.linear_solver_ordering = bundle.SchurOrdering(gps_offsets, gps_drift);
   std::unique_ptr<IterationForwarder> forwarder;
   if (options.iteration_callback || options.optimality_gap > 0.0) {
     forwarder = std::make_unique<IterationForwarder>(options.iteration_callback, round, options.optimality_gap);
@@ -948,7 +964,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     } else {
       result.posterior = PosteriorPrecision(
           &problem, model, config.image_used, config.point_used, blocks.rotations, bundle.mark_blocks(),
-          [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offset, gps_drift);
+          [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offsets, gps_drift);
     }
   } else if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
@@ -1165,20 +1181,27 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   }
 
   const int max_rounds = options.outlier_threshold_px > 0.0 ? options.max_outlier_rounds : 0;
-  Eigen::Vector3d gps_offset = options.initial_gps_offset_m;
+  int flights = 0;
+  for (const Image& image : model->images) {
+    if (image.gps_prior) flights = std::max(flights, image.gps_prior->flight + 1);
+  }
+  // One offset, or one per flight (at least one either way).
+  std::vector<Eigen::Vector3d> gps_offsets(options.gps_offset_per_flight ? std::max(flights, 1) : 1,
+                                           options.initial_gps_offset_m);
+  if (options.gps_offset_per_flight) {
+    for (size_t f = 0; f < gps_offsets.size() && f < options.initial_gps_flight_offsets_m.size(); ++f) {
+      gps_offsets[f] = options.initial_gps_flight_offsets_m[f];
+    }
+  }
   std::vector<Eigen::Vector3d> gps_drift;
   if (options.estimate_gps_drift) {
-    int flights = 0;
-    for (const Image& image : model->images) {
-      if (image.gps_prior) flights = std::max(flights, image.gps_prior->flight + 1);
-    }
     gps_drift.assign(flights, Eigen::Vector3d::Zero());
     for (int f = 0; f < flights && f < static_cast<int>(options.initial_gps_drift_m_per_s.size()); ++f) {
       gps_drift[f] = options.initial_gps_drift_m_per_s[f];
     }
   }
   for (int round = 0;; ++round) {
-    RoundResult result = SolveOnce(model, options, round, gps_offset.data(), &gps_drift);
+    RoundResult result = SolveOnce(model, options, round, &gps_offsets, &gps_drift);
     summary.gps_offset_estimated = result.offset_estimated;
     summary.gps_drift_estimated = result.drift_estimated;
     summary.gps_drift_m_per_s = gps_drift;
@@ -1187,7 +1210,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     summary.sigma0 = summary.redundancy > 0 ? std::sqrt(2.0 * result.ceres.final_cost / summary.redundancy) : 0.0;
     summary.intrinsics_precision = result.precision;
     summary.covariance_note = result.covariance_note;
-    summary.gps_offset_m = gps_offset;
+    summary.gps_offset_m = gps_offsets[0];
+    if (options.gps_offset_per_flight) summary.gps_flight_offsets_m = gps_offsets;
     if (round == 0) {
       summary.initial_cost = result.ceres.initial_cost;
       summary.gauge = result.gauge;
@@ -1237,7 +1261,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   }
 
   if (options.compute_precision) {
-    RoundResult pass = SolveOnce(model, options, summary.outlier_rounds + 1, gps_offset.data(), &gps_drift,
+    RoundResult pass = SolveOnce(model, options, summary.outlier_rounds + 1, &gps_offsets, &gps_drift,
                                  /*precision_pass=*/true);
     summary.precision = std::move(pass.posterior);
     BundlePrecision& p = summary.precision;
@@ -1249,6 +1273,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
       }
       for (PointPrecision& pt : p.points) pt.cov *= p.variance_factor;
       p.gps_offset_cov *= p.variance_factor;
+      for (Eigen::Matrix3d& c : p.gps_flight_offset_cov) c *= p.variance_factor;
       for (Eigen::Matrix3d& c : p.gps_drift_cov) c *= p.variance_factor;
     }
   }
@@ -1319,9 +1344,14 @@ std::string BundleSummary::BriefReport() const {
   out << "  sigma0: " << sigma0 << " (redundancy " << redundancy << ")\n";
   out << "  observations behind their camera (kept): " << num_behind_camera_initial
       << " initially, " << num_behind_camera_final << " after\n";
-  if (gps_offset_estimated) {
+  if (gps_offset_estimated && gps_flight_offsets_m.empty()) {
     out << "  GPS offset (GPS minus camera, E N U): " << gps_offset_m.x() << " " << gps_offset_m.y()
         << " " << gps_offset_m.z() << " m\n";
+  }
+  for (size_t f = 0; gps_offset_estimated && f < gps_flight_offsets_m.size(); ++f) {
+    const Eigen::Vector3d& o = gps_flight_offsets_m[f];
+    out << "  GPS offset of flight " << f + 1 << " (GPS minus camera, E N U): " << o.x() << " " << o.y() << " "
+        << o.z() << " m\n";
   }
   if (outlier_rounds > 0 || outliers_removed > 0) {
     out << "  outliers rejected: " << outliers_removed << " in " << outlier_rounds

@@ -120,6 +120,13 @@ struct BundleOptions {
   // at its initial value. initial_gps_offset_m is the start (ENU metres).
   bool estimate_gps_offset = false;
   Eigen::Vector3d initial_gps_offset_m = Eigen::Vector3d::Zero();
+  // With estimate_gps_offset: one offset per flight instead (each flight's
+  // own base station, antenna mount or height reference), on the GPS priors
+  // whose PositionPrior::flight is f (priors without a flight share flight
+  // 0's); initial_gps_flight_offsets_m are the starts (missing:
+  // initial_gps_offset_m).
+  bool gps_offset_per_flight = false;
+  std::vector<Eigen::Vector3d> initial_gps_flight_offsets_m;
   // A GNSS drift growing linearly in time within each flight (a consumer
   // drone's barometric / GNSS altitude drift), estimated per flight f as a
   // rate d_f (m/s, E N U) on the GPS priors whose PositionPrior::flight is f:
@@ -255,7 +262,8 @@ struct BundlePrecision {
   std::vector<ImagePrecision> images;  // adjusted images
   std::vector<PointPrecision> points;  // adjusted points and check points
   bool has_gps_offset = false;
-  Eigen::Matrix3d gps_offset_cov = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d gps_offset_cov = Eigen::Matrix3d::Zero();  // flight 0's when per flight
+  std::vector<Eigen::Matrix3d> gps_flight_offset_cov;  // per flight (BundleOptions::gps_offset_per_flight)
   // Per flight of the GNSS drift model ((m/s)²); zero rows and columns for
   // axes held.
   std::vector<Eigen::Matrix3d> gps_drift_cov;
@@ -295,7 +303,16 @@ struct BundleSummary {
   // BundleOptions::estimate_gps_offset and control anchored it, else the
   // initial value held fixed.
   bool gps_offset_estimated = false;
-  Eigen::Vector3d gps_offset_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gps_offset_m = Eigen::Vector3d::Zero();  // flight 0's when per flight
+  // Per flight, when BundleOptions::gps_offset_per_flight (else empty);
+  // GpsOffsetOf() gives an image's.
+  std::vector<Eigen::Vector3d> gps_flight_offsets_m;
+  // The offset that applies to a GPS prior: its flight's, or the shared one.
+  Eigen::Vector3d GpsOffsetOf(const PositionPrior& prior) const {
+    if (gps_flight_offsets_m.empty()) return gps_offset_m;
+    const int f = prior.flight >= 0 && prior.flight < static_cast<int>(gps_flight_offsets_m.size()) ? prior.flight : 0;
+    return gps_flight_offsets_m[f];
+  }
   // GNSS drift rates per flight (m/s, E N U), when estimated.
   bool gps_drift_estimated = false;
   std::vector<Eigen::Vector3d> gps_drift_m_per_s;

@@ -2,6 +2,7 @@
 #include "libphoto/adjust/georeferencing.h"
 
 #include <algorithm>
+#include <functional>
 #include <limits>
 #include <chrono>
 #include <cmath>
@@ -311,12 +312,14 @@ std::string ToString(GpsOffsetPolicy policy) {
     case GpsOffsetPolicy::kNever: return "never";
     case GpsOffsetPolicy::kAuto: return "auto";
     case GpsOffsetPolicy::kAlways: return "always";
+    case GpsOffsetPolicy::kPerFlight: return "per-flight";
   }
   return "?";
 }
 
 std::optional<GpsOffsetPolicy> ParseGpsOffsetPolicy(const std::string& text) {
-  for (GpsOffsetPolicy p : {GpsOffsetPolicy::kNever, GpsOffsetPolicy::kAuto, GpsOffsetPolicy::kAlways}) {
+  for (GpsOffsetPolicy p :
+       {GpsOffsetPolicy::kNever, GpsOffsetPolicy::kAuto, GpsOffsetPolicy::kAlways, GpsOffsetPolicy::kPerFlight}) {
     if (ToString(p) == text) return p;
   }
   return std::nullopt;
@@ -1050,23 +1053,55 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     } else {
       drift.note = "not tested: capture times on fewer than 6 photos with GPS";
     }
-    Eigen::Vector3d median;
-    for (int c = 0; c < 3; ++c) {
-      std::vector<double> v;
-      for (const auto& x : d) v.push_back(x[c]);
-      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-      median[c] = v[v.size() / 2];
+    // The component-wise median of d over the images that `in` selects.
+    auto median_of = [&](const std::function<bool(size_t)>& in) {
+      Eigen::Vector3d median = Eigen::Vector3d::Zero();
+      for (int c = 0; c < 3; ++c) {
+        std::vector<double> v;
+        for (size_t k = 0; k < d.size(); ++k) {
+          if (in(k)) v.push_back(d[k][c]);
+        }
+        if (v.empty()) continue;
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        median[c] = v[v.size() / 2];
+      }
+      return median;
+    };
+    const Eigen::Vector3d median = median_of([](size_t) { return true; });
+    // Per flight (--gps-offset per-flight): each flight judged about its own
+    // offset, which may differ from the others' by more than the threshold.
+    const bool per_flight = options.gps_offset == GpsOffsetPolicy::kPerFlight && flights.NumFlights() > 1;
+    std::vector<Eigen::Vector3d> flight_median(flights.NumFlights(), median);
+    if (per_flight) {
+      for (int f = 0; f < flights.NumFlights(); ++f) {
+        flight_median[f] = median_of([&](size_t k) { return flights.flight[k] == f; });
+      }
     }
+    auto centre_of = [&](size_t k) {
+      return per_flight && flights.flight[k] >= 0 ? flight_median[flights.flight[k]] : median;
+    };
     std::vector<char> consistent(gps_images.size(), 0);
     Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sigma_sum = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> flight_sum(flights.NumFlights(), Eigen::Vector3d::Zero());
+    std::vector<int> flight_count(flights.NumFlights(), 0);
     for (size_t k = 0; k < gps_images.size(); ++k) {
       const PositionPrior& prior = *model->images[gps_images[k]].gps_prior;
       const double threshold = threshold_for(std::max(prior.sigma_h_m, prior.sigma_v_m));
-      if ((d[k] - median).norm() > threshold) continue;
+      if ((d[k] - centre_of(k)).norm() > threshold) continue;
       consistent[k] = 1;
       ++versus.consistent;
       sum += d[k];
       sigma_sum += Eigen::Vector3d(prior.sigma_h_m, prior.sigma_h_m, prior.sigma_v_m);
+      if (flights.flight[k] >= 0) {
+        flight_sum[flights.flight[k]] += d[k];
+        ++flight_count[flights.flight[k]];
+      }
+    }
+    if (per_flight) {
+      for (int f = 0; f < flights.NumFlights(); ++f) {
+        versus.flight_offsets_enu_m.push_back(flight_count[f] > 0 ? Eigen::Vector3d(flight_sum[f] / flight_count[f])
+                                                                  : flight_median[f]);
+      }
     }
     if (versus.consistent > 0) {
       const double n = versus.consistent;
@@ -1117,11 +1152,18 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
 
-  if (versus.measured && options.gps_offset != GpsOffsetPolicy::kNever &&
-      (versus.significant || options.gps_offset == GpsOffsetPolicy::kAlways)) {
+  const bool always = options.gps_offset == GpsOffsetPolicy::kAlways ||
+                     options.gps_offset == GpsOffsetPolicy::kPerFlight;
+  if (versus.measured && options.gps_offset != GpsOffsetPolicy::kNever && (versus.significant || always)) {
     bundle.estimate_gps_offset = true;
     bundle.initial_gps_offset_m = versus.offset_enu_m;
-  } else if (options.gps_offset == GpsOffsetPolicy::kAlways && !gps_images.empty()) {
+    if (!versus.flight_offsets_enu_m.empty()) {
+      // One offset per flight: each GPS prior learns its flight.
+      attach_flights();
+      bundle.gps_offset_per_flight = true;
+      bundle.initial_gps_flight_offsets_m = versus.flight_offsets_enu_m;
+    }
+  } else if (always && !gps_images.empty()) {
     report.findings.push_back(Finding::Warning(
         "GPS_OFFSET_NOT_ESTIMATED",
         "GPS offset not estimated: it needs 3 or more non-collinear control points measured in 2 "
@@ -1202,7 +1244,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   // What the receiver should have read for an image, as adjusted: its
   // antenna, plus the GPS offset and the flight's drift where estimated.
   auto gps_as_adjusted = [&](const Image& image) {
-    Eigen::Vector3d at = AntennaOf(image, options.bundle.gnss_lever_arm_m) + report.bundle.gps_offset_m;
+    Eigen::Vector3d at = AntennaOf(image, options.bundle.gnss_lever_arm_m) + report.bundle.GpsOffsetOf(*image.gps_prior);
     const PositionPrior& p = *image.gps_prior;
     if (report.bundle.gps_drift_estimated && p.flight >= 0 &&
         p.flight < static_cast<int>(report.bundle.gps_drift_m_per_s.size())) {
@@ -1385,6 +1427,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       c.d_enu_m = gps_as_adjusted(image) - image.gps_prior->position;
       c.sigma_h_m = image.gps_prior->sigma_h_m;
       c.sigma_v_m = image.gps_prior->sigma_v_m;
+      c.flight = image.gps_prior->flight;
     }
     report.cameras.push_back(c);
   }

@@ -49,8 +49,11 @@ namespace aerotri {
 // When the adjustment estimates a constant GPS offset (GPS minus camera
 // centre, shared by all images): never; when the control datum shows a
 // significant one (kAuto: beyond 3 standard errors of the mean and beyond the
-// GPS sigma); or whenever three or more control points anchor the datum.
-enum class GpsOffsetPolicy { kNever, kAuto, kAlways };
+// GPS sigma); or whenever three or more control points anchor the datum
+// (kAlways). kPerFlight: as kAlways, one offset per flight (photos split
+// into flights by capture time, gnss_drift.h SplitFlights), each judged
+// about its own; one flight is kAlways.
+enum class GpsOffsetPolicy { kNever, kAuto, kAlways, kPerFlight };
 std::string ToString(GpsOffsetPolicy policy);
 std::optional<GpsOffsetPolicy> ParseGpsOffsetPolicy(const std::string& text);
 
@@ -143,6 +146,7 @@ struct CameraResult {
   Eigen::Vector3d d_enu_m = Eigen::Vector3d::Zero();
   double sigma_h_m = 0.0;
   double sigma_v_m = 0.0;
+  int flight = -1;  // the GPS prior's flight, where flights were told apart (drift, per-flight offsets)
   // Exterior orientation in the output CRS: the centre, and ω, φ, κ of
   // R = Rx(ω) Ry(φ) Rz(κ), the rotation from the photo frame (x right, y up
   // the image, z towards the viewer, out of the lens) to the CRS's grid axes
@@ -162,6 +166,8 @@ struct GpsVersusControl {
   int cameras = 0;           // with GPS
   int consistent = 0;        // within the threshold after the offset
   Eigen::Vector3d offset_enu_m = Eigen::Vector3d::Zero();  // mean over the consistent ones
+  // Per flight, under GpsOffsetPolicy::kPerFlight with two or more flights.
+  std::vector<Eigen::Vector3d> flight_offsets_enu_m;
   Eigen::Vector3d offset_sigma_m = Eigen::Vector3d::Zero();  // its standard error
   Eigen::Vector3d rms_after_offset_m = Eigen::Vector3d::Zero();
   bool significant = false;

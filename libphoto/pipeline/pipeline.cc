@@ -384,9 +384,11 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     for (const CameraGroup& g : ingest.record.groups) pixel_size_mm.push_back(g.pixel_size_mm);
     // A certificate's pixel pitch wins over EXIF's (full-resolution pixels:
     // scaled to the group's working pixels).
+    std::string source = "EXIF";
     if (!o.camera_file.empty()) {
       const CameraFile certificate = ReadCameraFile(o.camera_file);
       if (certificate.pixel_size_mm > 0.0) {
+        source = "the camera file";
         for (const IngestedImage& im : ingest.record.images) {
           if (im.group >= 0 && im.group < static_cast<int>(pixel_size_mm.size()) && im.working_width > 0) {
             pixel_size_mm[im.group] = certificate.pixel_size_mm * im.width / im.working_width;
@@ -394,7 +396,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
         }
       }
     }
-    if (report.contains("adjustment")) AddIntrinsicsInMm(&report["adjustment"], pixel_size_mm);
+    if (report.contains("adjustment")) AddIntrinsicsInMm(&report["adjustment"], pixel_size_mm, source);
   }
   report["ingest_warnings"] = ingest_doc.at("warnings");
 

@@ -596,7 +596,7 @@ std::string CameraCalibration(const json& r) {
         return Num(Get(mm, value), 4) + (mm.contains(s) ? " &plusmn; " + Num(Get(mm, s), 4) : std::string()) + " mm";
       };
       h << "<p>In the photogrammetric convention (pixel pitch " << Num(Get(mm, "pixel_size_mm") * 1000.0, 3)
-        << " &micro;m from EXIF): camera constant c " << with_sigma("c_mm", "sigma_c_mm") << ", principal point x0 "
+        << " &micro;m from " << Escape(Text(mm, "pixel_size_source", "EXIF")) << "): camera constant c " << with_sigma("c_mm", "sigma_c_mm") << ", principal point x0 "
         << with_sigma("x0_mm", "sigma_x0_mm") << ", y0 " << with_sigma("y0_mm", "sigma_y0_mm")
         << " (from the image centre, y up the image).</p>";
     }
@@ -681,6 +681,26 @@ std::string AttitudeAndDrift(const json& r) {
           << "</td><td>" << Num(Get(f.value("rate_sigma_m_per_s", json::object()), key.c_str()), 4) << "</td><td>"
           << Num(rate * Get(f, "duration_s"), 1) << "</td></tr>";
       }
+    }
+    h << "</table>";
+  }
+  // The GPS offset(s) the adjustment estimated, with their sigmas.
+  const json& offset = r.value("adjustment", json::object()).value("gps_offset", json::object());
+  if (offset.value("estimated", false)) {
+    json rows = offset.value("flights", json::array());
+    if (rows.empty()) rows.push_back({{"offset", offset.value("offset", json::object())},
+                                      {"sigma", offset.value("sigma", json::object())}});
+    h << "<p>GPS offset estimated (GPS minus camera centre, east / north / up metres"
+      << (offset.value("per_flight", false) ? ", one per flight" : "") << "):</p><table><tr><th>flight</th>"
+      << "<th>photos</th><th>E</th><th>N</th><th>U</th><th>&sigma; E</th><th>&sigma; N</th><th>&sigma; U</th></tr>";
+    for (const auto& f : rows) {
+      const json& o = f.value("offset", json::object());
+      const json& sg = f.value("sigma", json::object());
+      h << "<tr><td>" << (f.contains("flight") ? std::to_string(f.value("flight", 0)) : std::string("all")) << "</td><td>"
+        << (f.contains("photos") ? std::to_string(f.value("photos", 0)) : std::string("–")) << "</td>";
+      for (const char* a : {"e_m", "n_m", "u_m"}) h << "<td>" << Num(Get(o, a), 3) << "</td>";
+      for (const char* a : {"e_m", "n_m", "u_m"}) h << "<td>" << Num(Get(sg, a), 3) << "</td>";
+      h << "</tr>";
     }
     h << "</table>";
   }

@@ -164,7 +164,8 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
   return j;
 }
 
-void AddIntrinsicsInMm(nlohmann::json* adjustment, const std::vector<double>& pixel_size_mm) {
+void AddIntrinsicsInMm(nlohmann::json* adjustment, const std::vector<double>& pixel_size_mm,
+                       const std::string& pixel_size_source) {
   if (!adjustment->contains("intrinsics")) return;
   for (nlohmann::json& c : (*adjustment)["intrinsics"]) {
     const int id = c.value("camera", 0);
@@ -175,6 +176,7 @@ void AddIntrinsicsInMm(nlohmann::json* adjustment, const std::vector<double>& pi
     const double w = c.value("width", 0), h = c.value("height", 0);
     nlohmann::json mm = {
         {"pixel_size_mm", pitch},
+        {"pixel_size_source", pixel_size_source},
         {"c_mm", p["f"].get<double>() * pitch},
         {"x0_mm", (p["cx"].get<double>() - 0.5 * (w - 1)) * pitch},
         {"y0_mm", -(p["cy"].get<double>() - 0.5 * (h - 1)) * pitch},
@@ -454,6 +456,25 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   if (r.bundle.gps_offset_estimated && r.bundle.precision.has_gps_offset) {
     const Eigen::Matrix3d& c = r.bundle.precision.gps_offset_cov;
     j["adjustment"]["gps_offset"]["sigma"] = enu(c.diagonal().cwiseMax(0.0).cwiseSqrt());
+  }
+  // One offset per flight: each with its sigma and photos (the top-level
+  // offset is flight 1's).
+  if (!r.bundle.gps_flight_offsets_m.empty()) {
+    nlohmann::json flights = nlohmann::json::array();
+    std::vector<int> photos(r.bundle.gps_flight_offsets_m.size(), 0);
+    for (const CameraResult& c : r.cameras) {
+      if (c.has_prior && c.flight >= 0 && c.flight < static_cast<int>(photos.size())) ++photos[c.flight];
+    }
+    for (size_t f = 0; f < r.bundle.gps_flight_offsets_m.size(); ++f) {
+      nlohmann::json fj = {{"flight", f + 1}, {"photos", photos[f]}, {"offset", enu(r.bundle.gps_flight_offsets_m[f])}};
+      const auto& cov = r.bundle.precision.gps_flight_offset_cov;
+      if (r.bundle.gps_offset_estimated && f < cov.size()) {
+        fj["sigma"] = enu(cov[f].diagonal().cwiseMax(0.0).cwiseSqrt());
+      }
+      flights.push_back(fj);
+    }
+    j["adjustment"]["gps_offset"]["per_flight"] = true;
+    j["adjustment"]["gps_offset"]["flights"] = flights;
   }
   j["status"] = SurveyStatus(r.findings);
   j["warnings"] = FindingsJson(r.findings, Severity::kWarning);

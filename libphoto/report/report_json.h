@@ -40,8 +40,10 @@ nlohmann::json BundleSummaryJson(const BundleSummary& summary, const SparseModel
 // in the photogrammetric convention, "mm": camera constant c, principal
 // point x0, y0 from the image centre with y up the image, their posterior
 // sigmas (from adjustment["intrinsics_precision"]), the pitch and k1-k3,
-// p1, p2 as they are (unit-free on pixel-normalised coordinates).
-void AddIntrinsicsInMm(nlohmann::json* adjustment, const std::vector<double>& pixel_size_mm);
+// p1, p2 as they are (unit-free on pixel-normalised coordinates), and
+// where the pitch came from (pixel_size_source: "EXIF", "the camera file").
+void AddIntrinsicsInMm(nlohmann::json* adjustment, const std::vector<double>& pixel_size_mm,
+                       const std::string& pixel_size_source = "EXIF");
 nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& report, const SparseModel& model);
 
 // exterior_orientation.csv: one line per registered image, the centre in
