@@ -8,11 +8,13 @@
 
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include "libphoto/adjust/gnss_drift.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/simulate/survey_writer.h"
+#include "libphoto/simulate/synthetic_georef.h"
 #include "tests/test_util.h"
 
 namespace aerotri {
@@ -100,7 +102,7 @@ TEST_F(SurveyAdjustment, InputWarningsComeFirstAndTheCameraProductsAreWritten) {
 
   testing::TempDir out;
   WriteCameraProducts(report, model, out.path());
-  for (const char* name : {"cameras.csv", "exterior_orientation.csv", "cameras.gpkg"}) {
+  for (const char* name : {"cameras.csv", "exterior_orientation.csv", "cameras.gpkg", "tie_points.csv"}) {
     EXPECT_TRUE(fs::exists(out.path() / name)) << name;
   }
   std::ifstream csv(out.path() / "cameras.csv");
@@ -172,6 +174,69 @@ TEST_F(SurveyAdjustment, AControlFileInAnUnknownCrsIsRefusedBeforeAnyAdjustment)
     EXPECT_NE(std::string(e.what()).find("gcp.txt"), std::string::npos) << e.what();
   }
   EXPECT_EQ(model.images[0].pose.centre_in_world, before.images[0].pose.centre_in_world);
+}
+
+// tie_points.csv: the adjusted tie points in the output CRS, their errors
+// against the truth consistent with their posterior sigmas (noise and
+// sigmas matching: 0.3 px marks, the GPS and control as simulated).
+TEST(TiePointsCsv, PointsInTheCrsWithSigmasThatMatchTheirErrors) {
+  SyntheticSurveyOptions so;
+  so.seed = 22;
+  so.area_width_m = 200.0;
+  so.area_height_m = 150.0;
+  so.num_tie_points = 800;
+  so.pixel_noise_px = 0.3;
+  SyntheticGeorefOptions go;
+  go.seed = 22;
+  const SyntheticGeoref scene = MakeSyntheticGeoref(so, go);
+  GeoreferenceOptions options;
+  options.output_crs = "EPSG:32632";
+  options.gcp_sigma_h_m = go.gcp_noise_m;
+  options.gcp_sigma_v_m = go.gcp_noise_m;
+  options.bundle.loss = LossType::kNone;
+  options.bundle.outlier_threshold_px = 0.0;
+  options.bundle.observation_sigma_px = 0.3;
+  SparseModel model = scene.tie_model;
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, scene.gps, &scene.control, nullptr, options);
+  testing::TempDir out;
+  WriteTiePointsCsv(report, model, out / "tie_points.csv");
+
+  std::map<int, Eigen::Vector3d> truth;
+  const LocalFrame truth_frame(go.origin);
+  const Crs utm = Crs::FromString("EPSG:32632");
+  for (const Point& p : scene.survey.truth.points) {
+    if (p.role == PointRole::kTie) truth[p.id] = utm.FromGeodetic(truth_frame.GeodeticFromEnu(p.position));
+  }
+  std::ifstream in(out / "tie_points.csv");
+  std::string line;
+  int rows = 0, with_sigma = 0;
+  Eigen::Vector3d sum_z2 = Eigen::Vector3d::Zero();
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#' || line.rfind("id,", 0) == 0) continue;
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) f.push_back(cell);
+    ASSERT_GE(f.size(), 6u) << line;
+    ++rows;
+    if (f.size() < 9 || f[6].empty()) continue;
+    const auto it = truth.find(std::stoi(f[0]));
+    ASSERT_NE(it, truth.end()) << line;
+    const Eigen::Vector3d xyz(std::stod(f[2]), std::stod(f[3]), std::stod(f[4]));
+    const Eigen::Vector3d sigma(std::stod(f[6]), std::stod(f[7]), std::stod(f[8]));
+    sum_z2 += (xyz - it->second).cwiseQuotient(sigma).cwiseAbs2();
+    ++with_sigma;
+  }
+  int expected = 0;
+  const std::vector<int> views = model.ObservationsPerPoint();
+  for (size_t k = 0; k < model.points.size(); ++k) expected += model.points[k].role == PointRole::kTie && views[k] >= 2;
+  EXPECT_EQ(rows, expected);
+  ASSERT_EQ(with_sigma, rows);
+  const Eigen::Vector3d rms = (sum_z2 / with_sigma).cwiseSqrt();
+  std::printf("tie points: %d; errors / posterior sigma RMS: x %.2f y %.2f z %.2f\n", rows, rms.x(), rms.y(), rms.z());
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_GT(rms[a], 0.7) << "axis " << a;
+    EXPECT_LT(rms[a], 1.4) << "axis " << a;
+  }
 }
 
 }  // namespace

@@ -248,7 +248,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   WriteCameraProducts(report, model, output);
   ctx.Info(report.bundle.BriefReport());
   ctx.Info("wrote " + (output / "model").string() + ", " + (output / "report.json").string() +
-           ", cameras.csv, exterior_orientation.csv and cameras.gpkg");
+           ", cameras.csv, exterior_orientation.csv, cameras.gpkg and tie_points.csv");
 
   // An RMSE over no points is not a figure: "nan", never a reassuring 0.0000.
   const auto rmse = [](int count, double value) { return count > 0 ? value : std::nan(""); };

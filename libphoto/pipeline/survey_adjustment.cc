@@ -109,6 +109,57 @@ void WriteCameraProducts(const GeoreferenceReport& report, const SparseModel& mo
   WriteTextFileAtomically(folder / "cameras.csv", csv.str());
   WriteTextFileAtomically(folder / "exterior_orientation.csv", ExteriorOrientationCsv(report));
   WriteCamerasGpkg(report, folder / "cameras.gpkg");
+  WriteTiePointsCsv(report, model, folder / "tie_points.csv");
+}
+
+void WriteTiePointsCsv(const GeoreferenceReport& report, const SparseModel& model, const fs::path& path) {
+  const LocalFrame frame(report.enu_origin);
+  const Crs& crs = *report.output_crs;
+  // Sigmas onto the CRS's axes through one Jacobian at the block's centre:
+  // the grid's rotation from ENU (meridian convergence) and its scale barely
+  // change across a survey.
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const Point& p : model.points) {
+    if (p.role != PointRole::kTie) continue;
+    centre += p.position;
+    ++n;
+  }
+  if (n > 0) centre /= n;
+  Eigen::Matrix3d j = Eigen::Matrix3d::Identity();
+  if (!crs.IsGeographic() && !crs.IsGeocentric()) {
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d e = Eigen::Vector3d::Unit(k);
+      j.col(k) = 0.5 * (crs.FromGeodetic(frame.GeodeticFromEnu(centre + e)) -
+                        crs.FromGeodetic(frame.GeodeticFromEnu(centre - e)));
+    }
+  }
+  std::vector<const Eigen::Matrix3d*> cov(model.points.size(), nullptr);
+  for (const PointPrecision& p : report.bundle.precision.points) {
+    if (p.point >= 0 && p.point < static_cast<int>(cov.size())) cov[p.point] = &p.cov;
+  }
+  const std::vector<int> views = model.ObservationsPerPoint();
+  std::ostringstream csv;
+  csv << "# adjusted tie points, aerotri\n"
+      << "# crs: " << report.crs << " (" << report.crs_name << ")\n"
+      << "# sigma_*: posterior standard deviations (m) on " << report.axes
+      << "; empty when not computed\n"
+      << "id,name,x,y,z,images,sigma_x_m,sigma_y_m,sigma_z_m\n"
+      << std::setprecision(12);
+  for (size_t k = 0; k < model.points.size(); ++k) {
+    const Point& p = model.points[k];
+    if (p.role != PointRole::kTie || views[k] < 2) continue;
+    const Eigen::Vector3d xyz = crs.FromGeodetic(frame.GeodeticFromEnu(p.position));
+    csv << p.id << "," << p.name << "," << xyz.x() << "," << xyz.y() << "," << xyz.z() << "," << views[k];
+    if (cov[k]) {
+      const Eigen::Vector3d sigma = (j * *cov[k] * j.transpose()).diagonal().cwiseMax(0.0).cwiseSqrt();
+      csv << std::setprecision(4) << "," << sigma.x() << "," << sigma.y() << "," << sigma.z() << std::setprecision(12);
+    } else {
+      csv << ",,,";
+    }
+    csv << "\n";
+  }
+  WriteTextFileAtomically(path, csv.str());
 }
 
 void WriteCamerasGpkg(const GeoreferenceReport& r, const fs::path& path) {

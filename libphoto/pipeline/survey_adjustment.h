@@ -48,11 +48,18 @@ struct SurveyAdjustmentInputs {
 GeoreferenceReport AdjustSurvey(SparseModel* model, const SurveyAdjustmentInputs& inputs,
                                 GeoreferenceOptions options);
 
-// The adjusted cameras beside the report in folder: cameras.csv (positions in
-// the output CRS, geodetic, GPS residuals), exterior_orientation.csv and
-// cameras.gpkg. Each written atomically.
+// The adjusted cameras and tie points beside the report in folder:
+// cameras.csv (positions in the output CRS, geodetic, GPS residuals),
+// exterior_orientation.csv, cameras.gpkg and tie_points.csv. Each written
+// atomically.
 void WriteCameraProducts(const GeoreferenceReport& report, const SparseModel& model,
                          const std::filesystem::path& folder);
+
+// tie_points.csv: every adjusted tie point (two or more images) in the
+// output CRS with its id, name (from a measurement file), image count and
+// posterior sigmas on the CRS's axes (report.axes) where computed.
+void WriteTiePointsCsv(const GeoreferenceReport& report, const SparseModel& model,
+                       const std::filesystem::path& path);
 
 // cameras.gpkg: the adjusted camera centres as a GeoPackage point layer in
 // the output CRS (GDAL and QGIS read its CRS), with omega / phi / kappa,
