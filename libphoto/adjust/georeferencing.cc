@@ -85,20 +85,6 @@ std::string FormatMetres(double m) {
   return text;
 }
 
-// d(output CRS)/d(ENU) at an adjustment-frame position, by central
-// differences over ±1 m; the identity for a geographic CRS, whose figures
-// stay in local ENU metres.
-Eigen::Matrix3d CrsFromEnuJacobian(const LocalFrame& frame, const Crs& crs, const Eigen::Vector3d& enu) {
-  if (crs.IsGeographic() || crs.IsGeocentric()) return Eigen::Matrix3d::Identity();
-  Eigen::Matrix3d j;
-  for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3d e = Eigen::Vector3d::Unit(k);
-    j.col(k) = 0.5 * (crs.FromGeodetic(frame.GeodeticFromEnu(enu + e)) -
-                      crs.FromGeodetic(frame.GeodeticFromEnu(enu - e)));
-  }
-  return j;
-}
-
 // Where the GNSS antenna of an image is: its centre plus the lever arm
 // turned into the world (BundleOptions::gnss_lever_arm_m).
 Eigen::Vector3d AntennaOf(const Image& image, const Eigen::Vector3d& lever) {
@@ -306,6 +292,17 @@ void ApplyQualityGates(const SparseModel& model, const QualityGates& gates, Geor
 }
 
 }  // namespace
+
+Eigen::Matrix3d CrsFromEnuJacobian(const LocalFrame& frame, const Crs& crs, const Eigen::Vector3d& enu) {
+  if (crs.IsGeographic() || crs.IsGeocentric()) return Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d j;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d e = Eigen::Vector3d::Unit(k);
+    j.col(k) = 0.5 * (crs.FromGeodetic(frame.GeodeticFromEnu(enu + e)) -
+                      crs.FromGeodetic(frame.GeodeticFromEnu(enu - e)));
+  }
+  return j;
+}
 
 std::string ToString(GpsOffsetPolicy policy) {
   switch (policy) {

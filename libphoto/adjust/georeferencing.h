@@ -276,6 +276,12 @@ struct GeoreferenceReport {
   std::vector<Finding> findings;
 };
 
+// d(output CRS)/d(ENU) at an adjustment-frame position, by central
+// differences over ±1 m: turns ENU covariances onto the CRS's axes. The
+// identity for a geographic or geocentric CRS, whose figures stay in local
+// ENU metres.
+Eigen::Matrix3d CrsFromEnuJacobian(const LocalFrame& frame, const Crs& crs, const Eigen::Vector3d& enu);
+
 // A control or check point against its survey: with triangulate, the point
 // is triangulated from views alone (check points) into *position_enu;
 // otherwise *position_enu (the adjusted position) is evaluated. Residuals are

@@ -76,6 +76,16 @@ class Orienter {
   std::vector<std::optional<Pose>> poses;
   std::vector<InitPoint> points;
   std::vector<ImageOrientationResult> results;
+  // The points each image measures (indices into points), so that a
+  // resection reads its own marks only.
+  std::vector<std::vector<int>> points_of_image;
+
+  void IndexMarks() {
+    points_of_image.assign(image_names.size(), {});
+    for (size_t k = 0; k < points.size(); ++k) {
+      for (const Mark& m : points[k].marks) points_of_image[m.image].push_back(static_cast<int>(k));
+    }
+  }
 
   // Normalised ray coordinates of a mark; nullopt when the pixel cannot be
   // unprojected through the distortion.
@@ -85,7 +95,8 @@ class Orienter {
   bool Resect(int i, bool control_only, int round) {
     std::vector<Eigen::Vector3d> world;
     std::vector<Eigen::Vector2d> rays;
-    for (const InitPoint& p : points) {
+    for (const int k : points_of_image[i]) {
+      const InitPoint& p = points[k];
       if (!p.known || (control_only && !p.control)) continue;
       for (const Mark& m : p.marks) {
         if (m.image != i) continue;
@@ -354,6 +365,8 @@ SparseModel OrientFromMeasurements(const Camera& camera, const TiePointFile& tie
       o.points.push_back(std::move(p));
     }
   }
+
+  o.IndexMarks();
 
   // 1. Seed: resection on control, else a relative pair.
   int seeded = 0;

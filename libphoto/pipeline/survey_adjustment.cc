@@ -126,14 +126,7 @@ void WriteTiePointsCsv(const GeoreferenceReport& report, const SparseModel& mode
     ++n;
   }
   if (n > 0) centre /= n;
-  Eigen::Matrix3d j = Eigen::Matrix3d::Identity();
-  if (!crs.IsGeographic() && !crs.IsGeocentric()) {
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector3d e = Eigen::Vector3d::Unit(k);
-      j.col(k) = 0.5 * (crs.FromGeodetic(frame.GeodeticFromEnu(centre + e)) -
-                        crs.FromGeodetic(frame.GeodeticFromEnu(centre - e)));
-    }
-  }
+  const Eigen::Matrix3d j = CrsFromEnuJacobian(frame, crs, centre);
   std::vector<const Eigen::Matrix3d*> cov(model.points.size(), nullptr);
   for (const PointPrecision& p : report.bundle.precision.points) {
     if (p.point >= 0 && p.point < static_cast<int>(cov.size())) cov[p.point] = &p.cov;
