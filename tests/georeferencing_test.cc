@@ -1193,5 +1193,26 @@ TEST(Georeferencing, HorizontalOnlyControlHoldsThePlanAndLeavesTheHeightFree) {
   for (const Finding& f : report.findings) EXPECT_NE(f.severity, Severity::kError) << f.code << ": " << f.message;
 }
 
+// Correlations that betray weak geometry are named; the distortion
+// polynomial's own (k2-k3 near -1 in any block) are not a warning.
+TEST(Georeferencing, CorrelatedInteriorOrientationIsNamedNotThePolynomial) {
+  IntrinsicsPrecision p;
+  p.camera = 0;
+  p.names = {"f", "cx", "cy", "k1", "k2", "k3"};
+  p.correlation.assign(6, std::vector<double>(6, 0.1));
+  for (int k = 0; k < 6; ++k) p.correlation[k][k] = 1.0;
+  p.correlation[4][5] = p.correlation[5][4] = -0.98;  // k2-k3
+  EXPECT_TRUE(IntrinsicsCorrelationFindings({p}).empty());
+  p.correlation[0][1] = p.correlation[1][0] = 0.95;  // f-cx
+  p.correlation[2][3] = p.correlation[3][2] = -0.93;  // cy-k1
+  const std::vector<Finding> f = IntrinsicsCorrelationFindings({p});
+  ASSERT_EQ(f.size(), 1u);
+  EXPECT_EQ(f[0].code, "INTRINSICS_CORRELATED");
+  EXPECT_EQ(f[0].items, (std::vector<std::string>{"f-cx", "cy-k1"}));
+  EXPECT_NE(f[0].message.find("camera group 1: intrinsics correlated beyond 0.90 (f-cx 0.950, cy-k1 -0.930)"),
+            std::string::npos)
+      << f[0].message;
+}
+
 }  // namespace
 }  // namespace aerotri

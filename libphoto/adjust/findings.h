@@ -33,6 +33,7 @@
 //                              error    more than 10 deg
 //   PRECISION_NOT_COMPUTED     warning  posterior sigmas and the w-test are missing (why)
 //   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
+//   INTRINSICS_CORRELATED      warning  f or the principal point correlated beyond 0.9 with another intrinsic
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model
 //   NOTHING_REGISTERED         error    fewer than two photos in the model: no survey
 //   NOT_GEOREFERENCED          warning  no GPS and no control: arbitrary frame and scale

@@ -304,6 +304,37 @@ Eigen::Matrix3d CrsFromEnuJacobian(const LocalFrame& frame, const Crs& crs, cons
   return j;
 }
 
+std::vector<Finding> IntrinsicsCorrelationFindings(const std::vector<IntrinsicsPrecision>& precision,
+                                                   double limit) {
+  std::vector<Finding> out;
+  const auto interior = [](const std::string& name) { return name == "f" || name == "cx" || name == "cy"; };
+  for (const IntrinsicsPrecision& p : precision) {
+    std::string pairs;
+    std::vector<std::string> items;
+    for (size_t a = 0; a < p.names.size(); ++a) {
+      for (size_t b = a + 1; b < p.names.size(); ++b) {
+        if (a >= p.correlation.size() || b >= p.correlation[a].size()) continue;
+        const double rho = p.correlation[a][b];
+        if (!(std::abs(rho) > limit) || !(interior(p.names[a]) || interior(p.names[b]))) continue;
+        char text[96];
+        std::snprintf(text, sizeof text, "%s-%s %.3f", p.names[a].c_str(), p.names[b].c_str(), rho);
+        pairs += (pairs.empty() ? "" : ", ") + std::string(text);
+        items.push_back(p.names[a] + "-" + p.names[b]);
+      }
+    }
+    if (items.empty()) continue;
+    char limit_text[32];
+    std::snprintf(limit_text, sizeof limit_text, "%.2f", limit);
+    out.push_back(Finding::Warning(
+        "INTRINSICS_CORRELATED",
+        "camera group " + std::to_string(p.camera + 1) + ": intrinsics correlated beyond " + limit_text + " (" +
+            pairs + "): the block does not tell them apart (add oblique or cross strips, another flying height, "
+            "or hold them at a calibration: --camera-file)",
+        items));
+  }
+  return out;
+}
+
 std::string ToString(GpsOffsetPolicy policy) {
   switch (policy) {
     case GpsOffsetPolicy::kNever: return "never";
@@ -1237,6 +1268,9 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     }
   }
   report.bundle.outliers_removed += outliers_before_final;
+  for (Finding& f : IntrinsicsCorrelationFindings(report.bundle.intrinsics_precision)) {
+    report.findings.push_back(std::move(f));
+  }
   for (auto& [index, prior] : rejected_gps) model->images[index].gps_prior = prior;
   // What the receiver should have read for an image, as adjusted: its
   // antenna, plus the GPS offset and the flight's drift where estimated.

@@ -282,6 +282,16 @@ struct GeoreferenceReport {
 // ENU metres.
 Eigen::Matrix3d CrsFromEnuJacobian(const LocalFrame& frame, const Crs& crs, const Eigen::Vector3d& enu);
 
+// The intrinsics' correlations that betray weak geometry: every pair with
+// |rho| > limit in which the focal length or the principal point takes part
+// (f-cx, cx-p1, f-k1, ...), one INTRINSICS_CORRELATED warning per camera
+// group naming the pairs. Pairs of distortion coefficients alone (k1-k2,
+// k2-k3, ...) are left to the report's high_correlations: the polynomial's
+// terms are nearly collinear in any block, while the curve they make is
+// determined.
+std::vector<Finding> IntrinsicsCorrelationFindings(const std::vector<IntrinsicsPrecision>& precision,
+                                                   double limit = 0.9);
+
 // A control or check point against its survey: with triangulate, the point
 // is triangulated from views alone (check points) into *position_enu;
 // otherwise *position_enu (the adjusted position) is evaluated. Residuals are
