@@ -217,6 +217,29 @@ TEST(HtmlReport, GpsOffsetsPerFlightWithTheirSigmas) {
       << html.substr(html.find("GPS offset"), 800);
 }
 
+TEST(HtmlReport, VarianceComponentsPerGroup) {
+  json r = Images(5, true);
+  r["adjustment"]["sigma0"] = 1.0;
+  r["adjustment"]["variance_components"] = {
+      {"estimated", true},
+      {"iterations", 2},
+      {"sigma0_stated", 0.31},
+      {"groups",
+       {{{"group", "tie_points"}, {"unit", "px"}, {"rows", 67564}, {"redundancy", 58276.0}, {"stated_sigma", 1.0},
+         {"sigma0", 1.0}, {"scale", 0.3}, {"estimated_sigma", 0.3}, {"estimated", true}},
+        {{"group", "control_points"}, {"unit", "m"}, {"rows", 24}, {"redundancy", 6.3}, {"stated_sigma", 0.024},
+         {"sigma0", 0.32}, {"scale", 1.0}, {"estimated_sigma", 0.0077}, {"estimated", false}}}}};
+  const std::string html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("re-solved 2 time(s)); &sigma;<sub>0</sub> with the stated sigmas was 0.310."), std::string::npos);
+  EXPECT_NE(html.find("<tr><td>tie_points</td><td>67564</td><td>58276.0</td><td>1.000 px</td><td>1.000</td>"
+                      "<td>0.300 px</td><td>0.300 px</td></tr>"),
+            std::string::npos)
+      << html.substr(html.find("Variance components"), 900);
+  EXPECT_NE(html.find("<tr><td>control_points</td><td>24</td><td>6.3</td><td>0.024 m</td><td>0.320</td>"
+                      "<td>0.008 m</td><td>0.024 m</td></tr>"),
+            std::string::npos);
+}
+
 TEST(HtmlReport, DsmPreviewHasALegendAndAScaleBar) {
   json r = Images(5, true);
   r["dsm"] = {{"file", "dsm.tif"}, {"width", 900}, {"height", 600}, {"resolution_m", 0.16},

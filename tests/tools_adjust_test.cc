@@ -98,6 +98,24 @@ TEST_F(AdjustCommand, WritesReportWithEveryKey) {
     EXPECT_TRUE(report["adjustment"].contains(key)) << key;
   }
   EXPECT_NE(report["adjustment"]["datum"].get<std::string>().find("datum from priors"), std::string::npos);
+  // Variance components by default: the ties, stated 1 px, show the
+  // simulation's 0.3 px and are weighed by it; the χ² test is of the stated
+  // sigmas, the final σ0 of the estimated ones.
+  const auto& vc = report["adjustment"]["variance_components"];
+  EXPECT_TRUE(vc["estimated"].get<bool>());
+  bool ties = false;
+  for (const auto& g : vc["groups"]) {
+    if (g["group"] != "tie_points") continue;
+    ties = true;
+    EXPECT_EQ(g["stated_sigma"].get<double>(), 1.0);
+    EXPECT_GT(g["estimated_sigma"].get<double>(), 0.27);
+    EXPECT_LT(g["estimated_sigma"].get<double>(), 0.33);
+    EXPECT_NEAR(g["sigma0"].get<double>(), 1.0, 0.05);
+  }
+  EXPECT_TRUE(ties);
+  EXPECT_LT(report["adjustment"]["chi2_test"]["sigma0"].get<double>(), 0.4);
+  EXPECT_FALSE(report["adjustment"]["chi2_test"]["consistent"].get<bool>());
+  EXPECT_NEAR(report["adjustment"]["sigma0"].get<double>(), 1.0, 0.05);
   // The model is written in ENU: cameras ~60 m above the origin's ground.
   const SparseModel model = ReadColmapText(std::filesystem::path(args.output) / "model");
   EXPECT_EQ(model.images.size(), 48u);

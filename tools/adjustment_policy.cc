@@ -62,6 +62,12 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
   cmd->add_flag("--keep-control-sigmas", a->keep_control_sigmas,
                 "Weigh control by the file's sigmas even when it scatters 3 or more times more about the model "
                 "(by default the estimate is used, and said: CONTROL_WEAKER_THAN_STATED)");
+  cmd->add_option("--variance-components", a->variance_components,
+                  "estimate: each observation group (tie points, target marks, GPS horizontal / vertical, control) "
+                  "weighed by the scatter it shows, re-solved until its sigma0 is 1 (Foerstner), so that the "
+                  "posterior sigmas are honest; stated: the stated sigmas kept (the groups' sigma0 still reported)")
+      ->check(CLI::IsMember({"estimate", "stated"}))
+      ->capture_default_str();
   cmd->add_option("--leave-one-out", a->leave_one_out,
                   "on: adjust once more per control point with it withheld, and report its residual as a "
                   "check point's (report.json leave_one_out; needs 4 or more control points); off")
@@ -91,6 +97,7 @@ void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o
   o->bundle.mark_sigma_px = a.mark_sigma_px;
   o->bundle.check_points_in_bundle = a.checkpoints_in_bundle;
   o->keep_stated_control_sigmas = a.keep_control_sigmas;
+  o->bundle.estimate_variance_components = a.variance_components == "estimate";
   o->leave_one_out = a.leave_one_out == "on";
   if (!a.gnss_lever_arm.empty()) {
     const auto l = ParseVector3(a.gnss_lever_arm);

@@ -99,6 +99,9 @@ struct RoundResult {
   std::vector<IntrinsicsPrecision> precision;
   std::string covariance_note;
   BundlePrecision posterior;  // a priori (unit weight) until AdjustBundle scales it
+  // The precision pass's share of each observation group (index:
+  // ObservationGroup; rows 0 where the group is absent).
+  std::array<internal::GroupRedundancy, kNumObservationGroups> groups;
   std::string report;         // the aerotri engine's report (keep_solver_report)
 };
 
@@ -264,7 +267,9 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
                                    const std::vector<std::pair<ceres::ResidualBlockId, int>>& mark_blocks,
                                    const std::function<ceres::LossFunction*(double)>& loss_for, double mark_sigma,
                                    const BundleOptions& options, std::vector<Eigen::Vector3d>* gps_offsets,
-                                   std::vector<Eigen::Vector3d>* gps_drift) {
+                                   std::vector<Eigen::Vector3d>* gps_drift,
+                                   const std::array<internal::PrecisionProblem::Group, kNumObservationGroups>& groups,
+                                   std::array<internal::GroupRedundancy, kNumObservationGroups>* group_out) {
   const auto start = Clock::now();
   BundlePrecision out;
   internal::PrecisionProblem pp;
@@ -302,6 +307,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
 
   std::vector<int> mark_observation;
   std::vector<double> mark_sigma_of;
+  const double mark_scale = options.sigma_scale[static_cast<int>(ObservationGroup::kMarks)];
   for (const auto& [id, k] : mark_blocks) {
     const Observation& obs = model->observations[k];
     if (point_slot[obs.point] < 0) continue;
@@ -310,7 +316,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     rows.point = point_slot[obs.point];
     pp.marks.push_back(rows);
     mark_observation.push_back(k);
-    mark_sigma_of.push_back(obs.sigma_px > 0.0 ? obs.sigma_px : mark_sigma);
+    mark_sigma_of.push_back(obs.sigma_px > 0.0 ? obs.sigma_px * mark_scale : mark_sigma);
   }
 
   // Independent check points: triangulated from the adjusted cameras.
@@ -341,7 +347,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
         const Observation& obs = model->observations[k];
         Image& image = model->images[obs.image];
         Camera& camera = model->cameras[image.camera];
-        const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px : mark_sigma;
+        const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px * mark_scale : mark_sigma;
         ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
           return new ReprojectionCost<decltype(m)>(obs.xy, sigma);
         });
@@ -354,6 +360,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     }
   }
 
+  pp.groups.assign(groups.begin(), groups.end());
   const internal::PrecisionSolution solution = internal::SolvePrecision(pp);
   if (!solution.ok) {
     out.note = "not computed: " + solution.note;
@@ -429,6 +436,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     for (int a = 0; a < 2; ++a) t.w[a] = c.qvv[a] > 1e-6 ? c.residual[a] / std::sqrt(c.qvv[a]) : 0.0;
     out.marks.push_back(t);
   }
+  for (size_t g = 0; g < solution.groups.size() && g < group_out->size(); ++g) (*group_out)[g] = solution.groups[g];
   out.computed = true;
   out.time_s = SecondsSince(start);
   return out;
@@ -566,7 +574,13 @@ class CeresBundleProblem {
       : model_(model), options_(options), config_(config), blocks_(blocks), result_(result),
         problem_(ProblemOptions()) {
     mark_sigma_ = options.mark_sigma_px > 0.0 ? options.mark_sigma_px : options.observation_sigma_px;
+    mark_sigma_ *= Scale(ObservationGroup::kMarks);
   }
+
+  // The factor on a group's stated sigmas (variance components).
+  double Scale(ObservationGroup g) const { return options_.sigma_scale[static_cast<int>(g)]; }
+  // The adjustment's rows by observation group (bundle_precision.h).
+  const std::array<internal::PrecisionProblem::Group, kNumObservationGroups>& groups() const { return groups_; }
 
   ceres::Problem& problem() { return problem_; }
   double mark_sigma() const { return mark_sigma_; }
@@ -592,7 +606,9 @@ class CeresBundleProblem {
       const bool is_merged = config_.merged[obs.image];
       const bool is_mark = model_->points[obs.point].role != PointRole::kTie;
       const double sigma =
-          obs.sigma_px > 0.0 ? obs.sigma_px : is_mark ? mark_sigma_ : options_.observation_sigma_px;
+          obs.sigma_px > 0.0 ? obs.sigma_px * Scale(is_mark ? ObservationGroup::kMarks : ObservationGroup::kTies)
+          : is_mark          ? mark_sigma_
+                             : options_.observation_sigma_px * Scale(ObservationGroup::kTies);
       ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
         using Model = decltype(m);
         if (is_merged) return new ReprojectionCostMergedCamera<Model>(obs.xy, sigma);
@@ -603,6 +619,7 @@ class CeresBundleProblem {
                     : problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->rotations[obs.image].data(),
                                                 image.pose.centre_in_world.data(), point, camera.params.data());
       if (is_mark) mark_blocks_.emplace_back(id, static_cast<int>(k));
+      AddToGroup(is_mark ? ObservationGroup::kMarks : ObservationGroup::kTies, id, 0b11);
     }
   }
 
@@ -617,7 +634,10 @@ class CeresBundleProblem {
     for (size_t i = 0; i < model_->images.size(); ++i) {
       Image& image = model_->images[i];
       if (!config_.image_used[i] || !image.gps_prior) continue;
-      const PositionPrior& p = *image.gps_prior;
+      PositionPrior p = *image.gps_prior;
+      p.sigma_h_m *= Scale(ObservationGroup::kGpsHorizontal);
+      p.sigma_v_m *= Scale(ObservationGroup::kGpsVertical);
+      ceres::ResidualBlockId id = nullptr;
       double* centre = image.pose.centre_in_world.data();
       double* rotation = blocks_->rotations[i].data();
       // The shared offset, or the flight's own.
@@ -632,11 +652,11 @@ class CeresBundleProblem {
         // The offset block is always present (held below unless estimated).
         double* rate = (*gps_drift)[p.flight].data();
         if (lever_arm) {
-          problem_.AddResidualBlock(MakeDriftLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
+          id = problem_.AddResidualBlock(MakeDriftLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
                                                                options_.gnss_lever_arm_m, p.time_from_flight_s),
                                     nullptr, rotation, centre, gps_offset, rate);
         } else {
-          problem_.AddResidualBlock(
+          id = problem_.AddResidualBlock(
               new DriftPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m, p.time_from_flight_s), nullptr,
               centre, gps_offset, rate);
         }
@@ -645,16 +665,19 @@ class CeresBundleProblem {
         ceres::CostFunction* cost = MakeLeverArmPriorCost(p.position, p.sigma_h_m, p.sigma_v_m,
                                                           options_.gnss_lever_arm_m, options_.estimate_gps_offset);
         if (options_.estimate_gps_offset) {
-          problem_.AddResidualBlock(cost, nullptr, rotation, centre, gps_offset);
+          id = problem_.AddResidualBlock(cost, nullptr, rotation, centre, gps_offset);
         } else {
-          problem_.AddResidualBlock(cost, nullptr, rotation, centre);
+          id = problem_.AddResidualBlock(cost, nullptr, rotation, centre);
         }
       } else if (options_.estimate_gps_offset) {
-        problem_.AddResidualBlock(new OffsetPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr,
-                                  centre, gps_offset);
+        id = problem_.AddResidualBlock(new OffsetPositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr,
+                                       centre, gps_offset);
       } else {
-        problem_.AddResidualBlock(new PositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr, centre);
+        id = problem_.AddResidualBlock(new PositionPriorCost(p.position, p.sigma_h_m, p.sigma_v_m), nullptr, centre);
       }
+      // Residuals (E, N) / σh and U / σv.
+      AddToGroup(ObservationGroup::kGpsHorizontal, id, 0b011);
+      AddToGroup(ObservationGroup::kGpsVertical, id, 0b100);
       ++result_->num_gps;
     }
     for (Eigen::Vector3d& offset : *gps_offsets) {
@@ -729,10 +752,12 @@ class CeresBundleProblem {
       Point& point = model_->points[p];
       if (!config_.point_used[p] || point.role != PointRole::kControl || !point.prior) continue;
       const PositionPrior& prior = *point.prior;
-      problem_.AddResidualBlock(prior.covariance
-                                    ? new PositionPriorCost(prior.position, *prior.covariance)
-                                    : new PositionPriorCost(prior.position, prior.sigma_h_m, prior.sigma_v_m),
-                                nullptr, point.position.data());
+      const double f = Scale(ObservationGroup::kControl);
+      const ceres::ResidualBlockId id = problem_.AddResidualBlock(
+          prior.covariance ? new PositionPriorCost(prior.position, f * f * *prior.covariance)
+                           : new PositionPriorCost(prior.position, f * prior.sigma_h_m, f * prior.sigma_v_m),
+          nullptr, point.position.data());
+      AddToGroup(ObservationGroup::kControl, id, 0b111);
       ++result_->num_gcp;
     }
   }
@@ -835,6 +860,11 @@ class CeresBundleProblem {
   ceres::Problem problem_;
   double mark_sigma_ = 1.0;
   std::vector<std::pair<ceres::ResidualBlockId, int>> mark_blocks_;
+  std::array<internal::PrecisionProblem::Group, kNumObservationGroups> groups_;
+
+  void AddToGroup(ObservationGroup g, ceres::ResidualBlockId id, unsigned mask) {
+    if (options_.compute_precision) groups_[static_cast<int>(g)].rows.emplace_back(id, mask);
+  }
 };
 
 ceres::Solver::Options SolverOptions(const BundleOptions& options, int num_images, std::string* solver_name) {
@@ -964,7 +994,8 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     } else {
       result.posterior = PosteriorPrecision(
           &problem, model, config.image_used, config.point_used, blocks.rotations, bundle.mark_blocks(),
-          [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offsets, gps_drift);
+          [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offsets, gps_drift,
+          bundle.groups(), &result.groups);
     }
   } else if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
@@ -979,6 +1010,39 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
 
   WriteBack(blocks, config, pose_a, model);
   return result;
+}
+
+// Each observation group's stated sigma: the median over its observations
+// (px for image measurements, m for GPS and control; control's horizontal
+// and vertical pooled as in its 3 residuals).
+std::array<double, kNumObservationGroups> StatedSigmas(const SparseModel& model, const BundleOptions& options) {
+  std::array<std::vector<double>, kNumObservationGroups> v;
+  const double mark = options.mark_sigma_px > 0.0 ? options.mark_sigma_px : options.observation_sigma_px;
+  for (const Observation& obs : model.observations) {
+    if (!model.images[obs.image].registered) continue;
+    const bool is_mark = model.points[obs.point].role != PointRole::kTie;
+    v[static_cast<int>(is_mark ? ObservationGroup::kMarks : ObservationGroup::kTies)].push_back(
+        obs.sigma_px > 0.0 ? obs.sigma_px : is_mark ? mark : options.observation_sigma_px);
+  }
+  for (const Image& image : model.images) {
+    if (!image.registered || !image.gps_prior) continue;
+    v[static_cast<int>(ObservationGroup::kGpsHorizontal)].push_back(image.gps_prior->sigma_h_m);
+    v[static_cast<int>(ObservationGroup::kGpsVertical)].push_back(image.gps_prior->sigma_v_m);
+  }
+  for (const Point& point : model.points) {
+    if (point.role != PointRole::kControl || !point.prior) continue;
+    const PositionPrior& p = *point.prior;
+    const double rms = p.covariance ? std::sqrt(p.covariance->trace() / 3.0)
+                                    : std::sqrt((2.0 * p.sigma_h_m * p.sigma_h_m + p.sigma_v_m * p.sigma_v_m) / 3.0);
+    v[static_cast<int>(ObservationGroup::kControl)].push_back(rms);
+  }
+  std::array<double, kNumObservationGroups> out{};
+  for (int g = 0; g < kNumObservationGroups; ++g) {
+    if (v[g].empty()) continue;
+    std::nth_element(v[g].begin(), v[g].begin() + v[g].size() / 2, v[g].end());
+    out[g] = v[g][v[g].size() / 2];
+  }
+  return out;
 }
 
 int CountBehindCamera(const SparseModel& model) {
@@ -1025,6 +1089,22 @@ double MaxRayAngleDeg(const SparseModel& model, const std::vector<int>& obs_of_p
 }
 
 }  // namespace
+
+std::string ToString(ObservationGroup group) {
+  switch (group) {
+    case ObservationGroup::kTies:
+      return "tie_points";
+    case ObservationGroup::kMarks:
+      return "target_marks";
+    case ObservationGroup::kGpsHorizontal:
+      return "gps_horizontal";
+    case ObservationGroup::kGpsVertical:
+      return "gps_vertical";
+    case ObservationGroup::kControl:
+      return "control_points";
+  }
+  return "?";
+}
 
 std::string ToString(LossType loss) {
   switch (loss) {
@@ -1141,6 +1221,16 @@ bool BundleOptions::Validate(std::string* error) const {
                 std::to_string(outlier_threshold_px));
   }
   if (max_outlier_rounds < 0) return fail("outlier rounds must be >= 0");
+  for (int g = 0; g < kNumObservationGroups; ++g) {
+    if (!(sigma_scale[g] > 0.0) || !std::isfinite(sigma_scale[g])) {
+      return fail("sigma scale of " + ToString(static_cast<ObservationGroup>(g)) + " must be > 0, got " +
+                  std::to_string(sigma_scale[g]));
+    }
+  }
+  if (max_variance_component_iterations < 0) return fail("variance-component iterations must be >= 0");
+  if (!(variance_component_tolerance > 0.0)) {
+    return fail("variance-component tolerance must be > 0, got " + std::to_string(variance_component_tolerance));
+  }
   if (refine_intrinsics == IntrinsicsRefinement::kList && refine_params.empty()) {
     return fail("intrinsics refinement 'list' needs at least one parameter name");
   }
@@ -1200,8 +1290,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
       gps_drift[f] = options.initial_gps_drift_m_per_s[f];
     }
   }
-  for (int round = 0;; ++round) {
-    RoundResult result = SolveOnce(model, options, round, &gps_offsets, &gps_drift);
+  // A solve's figures into the summary (its counts, σ0, cost and times).
+  auto absorb = [&](const RoundResult& result, int round) {
     summary.gps_offset_estimated = result.offset_estimated;
     summary.gps_drift_estimated = result.drift_estimated;
     summary.gps_drift_m_per_s = gps_drift;
@@ -1235,7 +1325,9 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     summary.num_gcp_priors = result.num_gcp;
     summary.num_skipped_points = result.skipped_points;
     summary.num_camera_groups = 0;
-
+  };
+  for (int round = 0;; ++round) {
+    absorb(SolveOnce(model, options, round, &gps_offsets, &gps_drift), round);
     if (round >= max_rounds) break;
     // Reject observations beyond the threshold and solve again.
     const std::vector<double> errors = ReprojectionErrors(*model);
@@ -1261,8 +1353,56 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   }
 
   if (options.compute_precision) {
-    RoundResult pass = SolveOnce(model, options, summary.outlier_rounds + 1, &gps_offsets, &gps_drift,
-                                 /*precision_pass=*/true);
+    summary.sigma0_stated = summary.sigma0;
+    summary.redundancy_stated = summary.redundancy;
+    // The precision pass; with variance-component estimation, each group's
+    // factor rescales its sigmas and the block is solved again (Förstner's
+    // iteration), the last pass at the weights it settled on.
+    BundleOptions weighted = options;
+    int round = summary.outlier_rounds + 1;
+    const std::array<double, kNumObservationGroups> stated = StatedSigmas(*model, options);
+    RoundResult pass;
+    // Which groups are estimated is decided at the stated weights: a group
+    // with too little redundancy of its own to judge (a handful of control
+    // points that hold the datum) keeps its stated sigmas throughout.
+    std::array<bool, kNumObservationGroups> estimable{};
+    for (int iteration = 0;; ++iteration) {
+      pass = SolveOnce(model, weighted, round++, &gps_offsets, &gps_drift, /*precision_pass=*/true);
+      summary.variance_components.clear();
+      bool settled = true;
+      std::array<double, kNumObservationGroups> next = weighted.sigma_scale;
+      for (int g = 0; g < kNumObservationGroups; ++g) {
+        const internal::GroupRedundancy& gr = pass.groups[g];
+        if (gr.rows == 0) continue;
+        VarianceComponent vc;
+        vc.group = static_cast<ObservationGroup>(g);
+        vc.rows = gr.rows;
+        vc.redundancy = gr.rows - gr.leverage;
+        vc.sigma0 = vc.redundancy > 0.5 ? std::sqrt(gr.sum_squares / vc.redundancy)
+                                        : std::numeric_limits<double>::quiet_NaN();
+        if (iteration == 0) estimable[g] = vc.redundancy >= BundleOptions::kMinGroupRedundancy;
+        vc.scale = weighted.sigma_scale[g];
+        vc.stated_sigma = stated[g];
+        vc.estimated = options.estimate_variance_components && estimable[g];
+        summary.variance_components.push_back(vc);
+        // Settled within the tolerance or one standard error of the
+        // group's σ0 (1 / sqrt(2 r_g)), whichever is larger.
+        const double tolerance =
+            std::max(options.variance_component_tolerance, 1.0 / std::sqrt(2.0 * std::max(vc.redundancy, 1.0)));
+        if (estimable[g] && std::isfinite(vc.sigma0) && vc.sigma0 > 0.0 && std::abs(vc.sigma0 - 1.0) > tolerance) {
+          settled = false;
+          next[g] *= std::clamp(vc.sigma0, 0.1, 10.0);
+        }
+      }
+      if (!options.estimate_variance_components || !pass.posterior.computed || settled ||
+          iteration >= options.max_variance_component_iterations) {
+        break;
+      }
+      weighted.sigma_scale = next;
+      const int this_round = round++;
+      absorb(SolveOnce(model, weighted, this_round, &gps_offsets, &gps_drift), this_round);
+      summary.variance_component_iterations = iteration + 1;
+    }
     summary.precision = std::move(pass.posterior);
     BundlePrecision& p = summary.precision;
     if (p.computed) {

@@ -52,6 +52,14 @@ enum class IntrinsicsRefinement {
   kList,                 // the names in BundleOptions::refine_params
 };
 
+// The observation groups whose stated sigmas variance-component estimation
+// judges (and may rescale): image measurements of tie points and of target
+// marks (control and check points), GPS positions horizontally and
+// vertically, and the control points' surveyed positions.
+enum class ObservationGroup { kTies, kMarks, kGpsHorizontal, kGpsVertical, kControl };
+constexpr int kNumObservationGroups = 5;
+
+std::string ToString(ObservationGroup group);
 std::string ToString(LossType loss);
 std::string ToString(LinearSolverChoice solver);
 std::string ToString(BundleEngine engine);
@@ -198,6 +206,25 @@ struct BundleOptions {
   // with the cameras held.
   bool check_points_in_bundle = false;
 
+  // Each observation group's stated sigmas multiplied by this factor
+  // (index: ObservationGroup): the weights variance-component estimation
+  // arrives at, or a caller's own.
+  std::array<double, kNumObservationGroups> sigma_scale = {1.0, 1.0, 1.0, 1.0, 1.0};
+  // Variance-component estimation (with compute_precision): after the last
+  // solve, each group's a-posteriori variance factor vᵀPv / r_g (r_g its
+  // share of the redundancy, bundle_precision.h) rescales its sigmas and the
+  // block is solved again, until every factor is within
+  // variance_component_tolerance of 1 or max_variance_component_iterations
+  // re-solves were made (a group settles within one standard error of its
+  // σ0, 1 / sqrt(2 r_g), if that is larger). A group with a redundancy
+  // below kMinGroupRedundancy at the stated weights (σ0 known to worse than
+  // 22 %) keeps its stated sigmas. Without it the factors are
+  // still computed and reported (BundleSummary::variance_components).
+  bool estimate_variance_components = false;
+  int max_variance_component_iterations = 8;
+  double variance_component_tolerance = 0.02;
+  static constexpr double kMinGroupRedundancy = 10.0;
+
   std::function<void(const IterationReport&)> iteration_callback;
   // Keep Ceres' FullReport() of every solve in BundleSummary::solver_report.
   bool keep_solver_report = false;
@@ -273,6 +300,23 @@ struct BundlePrecision {
   const ImagePrecision* ForImage(int image) const;
 };
 
+// One observation group's variance component at the last solve.
+struct VarianceComponent {
+  ObservationGroup group = ObservationGroup::kTies;
+  int rows = 0;             // residual components (two per image measurement)
+  double redundancy = 0.0;  // the group's share r_g of the adjustment's redundancy
+  // sqrt(vᵀPv / r_g) under the sigmas used (stated × scale): 1 when they
+  // describe the data; NaN when the group has no redundancy.
+  double sigma0 = 0.0;
+  double scale = 1.0;       // BundleOptions::sigma_scale as solved
+  bool estimated = false;   // the scale was estimated (not given)
+  // The group's stated sigma (median over its observations; px for image
+  // measurements, m for GPS and control) and what the data shows:
+  // stated × scale × sigma0.
+  double stated_sigma = 0.0;
+  double EstimatedSigma() const { return stated_sigma * scale * sigma0; }
+};
+
 struct BundleSummary {
   int num_images = 0;          // adjusted (registered) images
   int num_camera_groups = 0;
@@ -332,6 +376,13 @@ struct BundleSummary {
   std::string covariance_note;  // why intrinsics_precision is empty, when asked for
 
   BundlePrecision precision;  // when BundleOptions::compute_precision
+  // Per observation group present, with compute_precision. When they were
+  // estimated, sigma0_stated is σ0 of the solve with the stated sigmas (the
+  // χ² test of the a-priori model) and sigma0 that of the final solve.
+  std::vector<VarianceComponent> variance_components;
+  int variance_component_iterations = 0;  // re-solves made by the estimation
+  double sigma0_stated = 0.0;
+  int redundancy_stated = 0;
 
   std::vector<WeakImage> weak_images;
   int weak_points_small_angle = 0;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/adjust/bundle_precision.h"
 
+#include <ceres/cost_function.h>
 #include <ceres/crs_matrix.h>
 
 #include <Eigen/Cholesky>
@@ -8,6 +9,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <map>
+#include <unordered_map>
 
 #include "libphoto/base/parallel.h"
 
@@ -139,11 +141,14 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   eval.apply_loss_function = true;
   eval.num_threads = std::max(1, p.num_threads);
   ceres::CRSMatrix crs;
-  if (!problem.Evaluate(eval, nullptr, nullptr, nullptr, &crs)) {
+  std::vector<double> adjusted_residuals;
+  if (!problem.Evaluate(eval, nullptr, p.groups.empty() ? nullptr : &adjusted_residuals, nullptr, &crs)) {
     out.note = "the Jacobian could not be evaluated at the solution";
     return out;
   }
   const RowSparse j = ToEigen(crs);
+  out.num_rows = static_cast<int>(j.rows());
+  out.num_params = n3 + nc;
   crs = ceres::CRSMatrix();
   // S = Jrᵀ Jr − Σ_p W_pᵀ V_p⁻¹ W_p. V_p and W_p are accumulated from the
   // rows of J that hold point p (a residual holds at most one point), never
@@ -201,6 +206,60 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
     const PointCoupling& c = coupling[pt];
     out.point_cov[pt] = c.v_inv;
     if (!c.cols.empty()) out.point_cov[pt] += c.t * Gather(out.reduced_cov, c.cols, c.cols) * c.t.transpose();
+  }
+
+  // Each group's residuals and leverages, from the rows of J.
+  if (!p.groups.empty()) {
+    std::unordered_map<ceres::ResidualBlockId, int> first_row;
+    first_row.reserve(p.adjusted.size());
+    int row = 0;
+    for (ceres::ResidualBlockId id : p.adjusted) {
+      first_row.emplace(id, row);
+      row += problem.GetCostFunctionForResidualBlock(id)->num_residuals();
+    }
+    for (const PrecisionProblem::Group& group : p.groups) {
+      GroupRedundancy g;
+      for (const auto& [id, mask] : group.rows) {
+        const auto it = first_row.find(id);
+        if (it == first_row.end()) continue;
+        const int r0 = it->second;
+        const int nr = problem.GetCostFunctionForResidualBlock(id)->num_residuals();
+        // The point the rows hold, if any (a residual holds at most one).
+        int pt = -1;
+        for (int r = r0; r < r0 + nr && pt < 0; ++r) {
+          for (RowSparse::InnerIterator c(j, r); c; ++c) {
+            if (c.col() < n3) {
+              pt = c.col() / 3;
+              break;
+            }
+          }
+        }
+        Eigen::MatrixXd a, b;
+        std::vector<int> cols;
+        SplitRows(j, r0, r0 + nr, pt >= 0 ? 3 * pt : -3, n3, &a, &cols, &b);
+        // J_i Σ J_iᵀ = a Σ_pp aᵀ + 2 sym(a Σ_pU bᵀ) + b Σ_UU bᵀ, Σ_pU = −T_p Σ_U.
+        Eigen::MatrixXd h = Eigen::MatrixXd::Zero(nr, nr);
+        if (!cols.empty()) {
+          const Eigen::MatrixXd s_uu = Gather(out.reduced_cov, cols, cols);
+          h += b * s_uu * b.transpose();
+        }
+        if (pt >= 0) {
+          const PointCoupling& c = coupling[pt];
+          h += a * out.point_cov[pt] * a.transpose();
+          if (!cols.empty() && !c.cols.empty()) {
+            const Eigen::MatrixXd cross = a * c.t * Gather(out.reduced_cov, c.cols, cols) * b.transpose();
+            h -= cross + cross.transpose();
+          }
+        }
+        for (int k = 0; k < nr; ++k) {
+          if (!(mask & (1u << k))) continue;
+          ++g.rows;
+          g.sum_squares += adjusted_residuals[r0 + k] * adjusted_residuals[r0 + k];
+          g.leverage += h(k, k);
+        }
+      }
+      out.groups.push_back(g);
+    }
   }
 
   // Points triangulated with the cameras held (independent check points).

@@ -19,6 +19,7 @@
 //   CONTROL_INCONSISTENT       warning  control points left out of the initial fit
 //   CONTROL_RESIDUAL_HIGH      warning  control residuals beyond k sigma
 //   CONTROL_WEAKER_THAN_STATED warning  control scatter several times its stated sigmas (the estimate is used)
+//   SIGMAS_OPTIMISTIC          warning  an observation group (ties, marks, GPS) scatters 3+ times its stated sigma
 //   CONTROL_OUTSIDE_SURVEY     error    surveyed points outside the photographed area (left out)
 //   CHECK_POINTS_FAR           warning  check points beyond what the datum allows;
 //                              error    when more than half of them are

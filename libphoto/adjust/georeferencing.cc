@@ -1466,6 +1466,26 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     report.findings.push_back(Finding::Warning(
         "PRECISION_NOT_COMPUTED", "posterior standard deviations and the marks' w-test are missing: " + precision.note));
   }
+  // Observation groups whose data scatter several times their stated sigmas
+  // (control has its own finding, CONTROL_WEAKER_THAN_STATED).
+  for (const VarianceComponent& vc : report.bundle.variance_components) {
+    if (vc.group == ObservationGroup::kControl || !(vc.stated_sigma > 0.0)) continue;
+    const double factor = vc.EstimatedSigma() / vc.stated_sigma;
+    if (!(factor > 3.0)) continue;
+    const bool px = vc.group == ObservationGroup::kTies || vc.group == ObservationGroup::kMarks;
+    char text[400];
+    std::snprintf(text, sizeof text,
+                  "%s scatter %.1f times their stated sigma: %.3g %s against %.3g %s (variance component, "
+                  "redundancy %.0f)%s",
+                  vc.group == ObservationGroup::kTies            ? "tie-point measurements"
+                  : vc.group == ObservationGroup::kMarks         ? "target marks"
+                  : vc.group == ObservationGroup::kGpsHorizontal ? "GPS positions horizontally"
+                                                                 : "GPS heights",
+                  factor, vc.EstimatedSigma(), px ? "px" : "m", vc.stated_sigma, px ? "px" : "m", vc.redundancy,
+                  vc.estimated ? "; the adjustment weighs them by the estimate"
+                               : "; state the estimate, or let it be used (--variance-components estimate)");
+    report.findings.push_back(Finding::Warning("SIGMAS_OPTIMISTIC", text, {ToString(vc.group)}));
+  }
   // Data snooping on the marks: the largest |w| beyond the critical value is
   // the likeliest blunder (one at a time: a blunder raises its neighbours'
   // w too, less).
@@ -1517,6 +1537,11 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       once.leave_one_out = false;
       once.progress = nullptr;
       once.posterior_precision = false;
+      // The weights the survey's own adjustment arrived at.
+      for (const VarianceComponent& vc : report.bundle.variance_components) {
+        once.bundle.sigma_scale[static_cast<int>(vc.group)] = vc.scale;
+      }
+      once.bundle.estimate_variance_components = false;
       std::vector<Eigen::Vector3d> d;
       for (int k = 0; k < n; ++k) {
         ReportProgress(options.progress, 0.9 + 0.1 * k / n,

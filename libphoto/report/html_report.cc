@@ -262,6 +262,27 @@ std::string AdjustmentStatistics(const json& r) {
       << "</td></tr>";
   }
   h << "<tr><td>termination</td><td>" << Escape(Text(adj, "termination", "")) << "</td></tr></table>";
+  if (adj.contains("variance_components")) {
+    const json& vc = adj["variance_components"];
+    const bool estimated = vc.value("estimated", false);
+    h << "<h3>Variance components</h3><p>"
+      << (estimated ? "Each observation group weighed by the scatter it shows (re-solved " +
+                          std::to_string(vc.value("iterations", 0)) + " time(s)); &sigma;<sub>0</sub> with the "
+                          "stated sigmas was " + Num(Get(vc, "sigma0_stated", NAN), 3) + "."
+                    : std::string("The stated sigmas kept; each group's &sigma;<sub>0</sub> shows whether they "
+                                  "describe its data."))
+      << "</p><table><tr><th>group</th><th>observations</th><th>redundancy</th><th>stated &sigma;</th>"
+         "<th>group &sigma;<sub>0</sub></th><th>shown by the data</th><th>weighed by</th></tr>";
+    for (const auto& g : vc.value("groups", json::array())) {
+      const std::string unit = " " + Text(g, "unit", "");
+      const int decimals = 3;
+      h << "<tr><td>" << Escape(Text(g, "group", "")) << "</td><td>" << g.value("rows", 0) << "</td><td>"
+        << Num(Get(g, "redundancy"), 1) << "</td><td>" << Num(Get(g, "stated_sigma"), decimals) << unit
+        << "</td><td>" << Num(Get(g, "sigma0"), 3) << "</td><td>" << Num(Get(g, "estimated_sigma"), decimals) << unit
+        << "</td><td>" << Num(Get(g, "stated_sigma") * Get(g, "scale", 1.0), decimals) << unit << "</td></tr>";
+    }
+    h << "</table>";
+  }
   const json& p = adj.value("precision", json::object());
   if (!p.value("computed", false)) {
     h << "<p>Posterior precision not computed: " << Escape(Text(p, "note", "not asked for")) << "</p>";

@@ -2,6 +2,7 @@
 #include "libphoto/report/report_json.h"
 
 #include <algorithm>
+#include <cmath>
 #include <iomanip>
 #include <sstream>
 
@@ -126,13 +127,47 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
   j["linear_solver"] = s.linear_solver;
   // The stochastic model's check: r sigma0^2 follows chi^2(r) when the stated
   // sigmas hold; z is its normal approximation.
+  // With variance components estimated, the test is of the stated sigmas
+  // (the first solve's sigma0), and sigma0 is that of the final weights.
   j["sigma0"] = s.sigma0;
   j["redundancy"] = s.redundancy;
-  const double z = s.redundancy > 0 ? (s.sigma0 * s.sigma0 - 1.0) * std::sqrt(s.redundancy / 2.0) : 0.0;
+  const bool reweighted = s.variance_component_iterations > 0;
+  const double s0 = reweighted ? s.sigma0_stated : s.sigma0;
+  const int r = reweighted ? s.redundancy_stated : s.redundancy;
+  const double z = r > 0 ? (s0 * s0 - 1.0) * std::sqrt(r / 2.0) : 0.0;
   j["chi2_test"] = {{"z", z},
+                    {"sigma0", s0},
                     {"consistent", std::abs(z) < 3.0},
                     {"note", "r sigma0^2 ~ chi^2(r) under the stated sigmas; |z| >= 3: the sigmas (image, GPS, "
                              "control) do not describe the data (sigma0 < 1: pessimistic, > 1: optimistic)"}};
+  if (!s.variance_components.empty()) {
+    nlohmann::json vc;
+    vc["estimated"] = std::any_of(s.variance_components.begin(), s.variance_components.end(),
+                                  [](const VarianceComponent& c) { return c.estimated; });
+    vc["iterations"] = s.variance_component_iterations;
+    vc["sigma0_stated"] = s.sigma0_stated;
+    vc["note"] = "per observation group: sigma0 = sqrt(v'Pv / r_g), r_g the group's share of the redundancy "
+                 "(Foerstner); estimated_sigma = stated_sigma * scale * sigma0 is what the data show. Estimated: "
+                 "each group weighed by its own estimate (scale) and the block solved again until every sigma0 "
+                 "is 1, so the posterior sigmas are honest; stated: the stated sigmas kept and every covariance "
+                 "scaled by the one sigma0^2";
+    nlohmann::json groups = nlohmann::json::array();
+    for (const VarianceComponent& c : s.variance_components) {
+      const bool px = c.group == ObservationGroup::kTies || c.group == ObservationGroup::kMarks;
+      groups.push_back({{"group", ToString(c.group)},
+                        {"unit", px ? "px" : "m"},
+                        {"rows", c.rows},
+                        {"redundancy", c.redundancy},
+                        {"stated_sigma", c.stated_sigma},
+                        {"sigma0", std::isfinite(c.sigma0) ? nlohmann::json(c.sigma0) : nlohmann::json(nullptr)},
+                        {"scale", c.scale},
+                        {"estimated_sigma", std::isfinite(c.sigma0) ? nlohmann::json(c.EstimatedSigma())
+                                                                    : nlohmann::json(nullptr)},
+                        {"estimated", c.estimated}});
+    }
+    vc["groups"] = groups;
+    j["variance_components"] = vc;
+  }
   j["datum"] = s.gauge;
   j["outliers_removed"] = s.outliers_removed;
   j["observations_behind_camera"] = s.num_behind_camera_final;
@@ -312,7 +347,8 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
     pj["computed"] = p.computed;
     if (!p.computed) pj["note"] = p.note;
     pj["variance_factor"] = p.variance_factor;
-    pj["scaling"] = "every sigma is a-posteriori: the a-priori covariance (J^T J)^-1 times sigma0^2";
+    pj["scaling"] = "every sigma is a-posteriori: the a-priori covariance (J^T J)^-1 times sigma0^2 (with variance "
+                    "components estimated, J weighed by each group's estimated sigma, and sigma0 1)";
     pj["time_s"] = p.time_s;
     pj["check_points"] = r.check_points_in_bundle
                              ? "free points inside the bundle (no prior; their marks tie the block)"
