@@ -4,6 +4,7 @@
 // nothing of feature extraction or matching is under test here.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <map>
 #include <random>
 #include <set>
@@ -328,6 +329,79 @@ TEST(IncrementalMapper, AnImageWithoutMatchesIsLeftOutAndSaysWhy) {
   int registered = 0;
   for (const ImageRegistration& r : result.images) registered += r.registered;
   EXPECT_EQ(registered, static_cast<int>(s.names.size()) - 1);
+}
+
+// A false registration on repetitive texture, caught when it happens: one
+// image (X) carries another's features and matches (Y's, 2 strips away), so
+// PnP places it where Y is, while its GPS says where it was. The check
+// against the GPS de-registers it and names it; every other image stays
+// registered. Its GPS fixes agree with their neighbours': the fix is right.
+// The same block with a third of its GPS fixes 50 m off (blunders that jump
+// away from their neighbours) keeps every image: the fixes are the errors.
+TEST(IncrementalMapper, AFalseRegistrationIsCaughtByTheGpsWhenItHappens) {
+  SyntheticMatches s = MakeMatches(9, 0.3);
+  const int n = static_cast<int>(s.names.size());
+  std::vector<std::optional<Eigen::Vector3d>> gps(n);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> noise(0.0, 2.0);
+  for (int i = 0; i < n; ++i) {
+    gps[i] = s.truth.images[i].pose.centre_in_world + Eigen::Vector3d(noise(rng), noise(rng), 2.0 * noise(rng));
+  }
+  // X and the image Y farthest from it.
+  const int x = n / 2;
+  int y = 0;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d c = s.truth.images[i].pose.centre_in_world;
+    if ((c - s.truth.images[x].pose.centre_in_world).norm() >
+        (s.truth.images[y].pose.centre_in_world - s.truth.images[x].pose.centre_in_world).norm()) {
+      y = i;
+    }
+  }
+  const double apart = (s.truth.images[y].pose.centre_in_world - s.truth.images[x].pose.centre_in_world).norm();
+  ASSERT_GT(apart, 60.0);
+  std::vector<ImageFeatures> features = s.features;
+  features[x] = s.features[y];
+  std::vector<PairMatches> matches;
+  for (const PairMatches& m : s.matches) {
+    if (m.i == x || m.j == x) continue;
+    matches.push_back(m);
+    if (m.i != y && m.j != y) continue;
+    PairMatches copy = m;  // Y's pair, as X's
+    if (copy.i == y) copy.i = x;
+    if (copy.j == y) copy.j = x;
+    if (copy.i > copy.j) {
+      std::swap(copy.i, copy.j);
+      for (auto& in : copy.inliers) std::swap(in[0], in[1]);
+    }
+    matches.push_back(copy);
+  }
+  Camera start = Camera::Create(CameraModelId::kBrown, 1200.0, 1600, 1200);
+  MapperOptions options;
+  options.num_threads = 2;
+  options.gps_rescue = false;  // these keypoints carry no descriptors to match from
+  const std::vector<int> camera_of_image(n, 0);
+  {
+    MapperOptions unchecked = options;
+    unchecked.gps_check_m = 0.0;
+    const MapperResult r = ReconstructIncremental(s.names, camera_of_image, {start}, features, matches, unchecked, gps);
+    EXPECT_TRUE(r.images[x].registered) << "the false registration this test is about did not happen";
+  }
+  const MapperResult r = ReconstructIncremental(s.names, camera_of_image, {start}, features, matches, options, gps);
+  EXPECT_FALSE(r.images[x].registered);
+  EXPECT_NE(r.images[x].why_not.find("m from its GPS position"), std::string::npos) << r.images[x].why_not;
+  EXPECT_EQ(r.gps_deregistered, std::vector<std::string>{s.names[x]});
+  std::printf("%s (truly %.0f m from %s): %s\n", s.names[x].c_str(), apart, s.names[y].c_str(), r.images[x].why_not.c_str());
+  for (int i = 0; i < n; ++i) {
+    if (i != x) EXPECT_TRUE(r.images[i].registered) << s.names[i] << ": " << r.images[i].why_not;
+  }
+
+  // GPS blunders on every third image of the untouched block.
+  std::vector<std::optional<Eigen::Vector3d>> blundered = gps;
+  for (int i = 0; i < n; i += 3) *blundered[i] += Eigen::Vector3d(50.0, 0.0, 0.0);
+  const MapperResult b = ReconstructIncremental(s.names, camera_of_image, {start}, s.features, s.matches, options,
+                                                blundered);
+  EXPECT_TRUE(b.gps_deregistered.empty());
+  for (int i = 0; i < n; ++i) EXPECT_TRUE(b.images[i].registered) << s.names[i] << ": " << b.images[i].why_not;
 }
 
 }  // namespace

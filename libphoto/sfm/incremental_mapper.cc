@@ -3,10 +3,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <opencv2/core.hpp>
 
 #include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/adjust/gnss_drift.h"
 #include "libphoto/base/error.h"
 #include "georef/similarity.h"
 #include "libphoto/sfm/guided_matching.h"
@@ -28,6 +30,8 @@ void MapperOptions::Check() const {
   CheckOption(rescue_search_radius_px > 0.0 && std::isfinite(rescue_search_radius_px),
               "mapper rescue_search_radius_px", rescue_search_radius_px, "a positive number of pixels");
   CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
+  CheckOption(gps_check_m >= 0.0 && std::isfinite(gps_check_m), "mapper gps_check_m", gps_check_m,
+              "0 (no check) or a distance in metres");
 }
 
 namespace {
@@ -56,6 +60,7 @@ class Mapper {
     tracks_ = BuildTracks(counts, matches);
     point_of_track_.assign(tracks_.tracks.size(), -1);
     status_.resize(names.size());
+    gps_strikes_.assign(names.size(), 0);
     failures_.assign(names.size(), 0);
     for (const PairMatches& m : matches) {
       has_pair_[m.i] = has_pair_[m.j] = true;
@@ -121,6 +126,9 @@ class Mapper {
     result.model = std::move(model_);
     result.images = status_;
     result.global_adjustments = adjustments_;
+    for (size_t i = 0; i < gps_strikes_.size(); ++i) {
+      if (gps_strikes_[i] > 0) result.gps_deregistered.push_back(result.model.images[i].name);
+    }
     return result;
   }
 
@@ -274,7 +282,7 @@ class Mapper {
   std::vector<int> NextImages() {
     std::vector<std::pair<int, int>> counts;
     for (size_t i = 0; i < model_.images.size(); ++i) {
-      if (model_.images[i].registered || failures_[i] >= 2) continue;
+      if (model_.images[i].registered || failures_[i] >= 2 || gps_strikes_[i] > 0) continue;
       int n = 0;
       for (int t : tracks_.track_of[i]) n += (t >= 0 && point_of_track_[t] >= 0);
       if (n >= options_.min_pnp_inliers) counts.push_back({n, static_cast<int>(i)});
@@ -379,7 +387,7 @@ class Mapper {
     const Similarity model_from_gps = fit->transform.Inverse();
     bool any = false;
     for (size_t i = 0; i < model_.images.size(); ++i) {
-      if (model_.images[i].registered || !gps_[i] || features_[i].keypoints.empty()) continue;
+      if (model_.images[i].registered || !gps_[i] || features_[i].keypoints.empty() || gps_strikes_[i] >= 2) continue;
       if (RescueImage(static_cast<int>(i), model_from_gps, fit->transform,
                       std::max(10.0, 5.0 * fit->rms_m))) {
         any = true;
@@ -514,6 +522,7 @@ class Mapper {
     o.focal_prior_px = options_.focal_prior_px;
     AdjustBundle(&model_, o);
     ++adjustments_;
+    DeregisterAgainstGps();
     // Points left with fewer than two observations are dropped (their tracks
     // may be triangulated again); then tracks that can be triangulated now.
     const std::vector<int> per_point = model_.ObservationsPerPoint();
@@ -529,6 +538,83 @@ class Mapper {
     for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
       if (point_of_track_[t] < 0) TriangulateTrack(static_cast<int>(t));
     }
+  }
+
+  // Registrations that disagree with their GPS (see the header). Returns
+  // how many images were de-registered.
+  int DeregisterAgainstGps() {
+    if (!(options_.gps_check_m > 0.0)) return 0;
+    std::vector<int> images;
+    std::vector<Eigen::Vector3d> from, to;
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      if (!model_.images[i].registered || !gps_[i]) continue;
+      images.push_back(static_cast<int>(i));
+      from.push_back(model_.images[i].pose.centre_in_world);
+      to.push_back(*gps_[i]);
+    }
+    if (images.size() < 6) return 0;
+    const ViewingGeometry view = MeasureViewingGeometry(model_);
+    if (!view.nadir) return 0;  // no vertical to level by (yet)
+    const auto fit = FitLevelledSimilarity(from, to, view.mean_axis, options_.gps_check_m);
+    if (!fit || 2 * fit->num_inliers <= static_cast<int>(images.size())) return 0;  // the GPS as a whole disagrees
+    const double limit = std::max(options_.gps_check_m, 5.0 * fit->rms_m);
+    int removed = 0;
+    for (size_t k = 0; k < images.size(); ++k) {
+      const double distance = (fit->transform.Apply(from[k]) - to[k]).head<2>().norm();
+      if (distance <= limit || !GpsAgreesWithNeighbours(images[k])) continue;
+      Deregister(images[k], distance);
+      ++removed;
+    }
+    return removed;
+  }
+
+  // Whether an image's GPS position is where its capture-order neighbours'
+  // put it: within max(5 m, half the median spacing between consecutive
+  // fixes) of the midpoint of the two beside it, or of the extrapolation of
+  // the two before or the two after (a strip's end). Without neighbours:
+  // false (nothing says the fix is right).
+  bool GpsAgreesWithNeighbours(int image) const {
+    const int n = static_cast<int>(gps_.size());
+    auto at = [&](int j) -> const std::optional<Eigen::Vector3d>& {
+      static const std::optional<Eigen::Vector3d> none;
+      return j >= 0 && j < n ? gps_[j] : none;
+    };
+    std::vector<double> spacing;
+    for (int j = 1; j < n; ++j) {
+      if (gps_[j] && gps_[j - 1]) spacing.push_back((*gps_[j] - *gps_[j - 1]).head<2>().norm());
+    }
+    if (spacing.empty()) return false;
+    std::nth_element(spacing.begin(), spacing.begin() + spacing.size() / 2, spacing.end());
+    const double tolerance = std::max(5.0, 0.5 * spacing[spacing.size() / 2]);
+    const Eigen::Vector2d g = at(image)->head<2>();
+    std::vector<Eigen::Vector2d> predictions;
+    if (at(image - 1) && at(image + 1)) predictions.push_back(0.5 * (at(image - 1)->head<2>() + at(image + 1)->head<2>()));
+    if (at(image - 1) && at(image - 2)) predictions.push_back(2.0 * at(image - 1)->head<2>() - at(image - 2)->head<2>());
+    if (at(image + 1) && at(image + 2)) predictions.push_back(2.0 * at(image + 1)->head<2>() - at(image + 2)->head<2>());
+    for (const Eigen::Vector2d& p : predictions) {
+      if ((p - g).norm() <= tolerance) return true;
+    }
+    return false;
+  }
+
+  void Deregister(int image, double distance_m) {
+    model_.images[image].registered = false;
+    std::vector<Observation> kept;
+    kept.reserve(model_.observations.size());
+    for (const Observation& obs : model_.observations) {
+      if (obs.image != image) kept.push_back(obs);
+    }
+    model_.observations.swap(kept);
+    ++gps_strikes_[image];
+    char text[300];
+    std::snprintf(text, sizeof text,
+                  "registered %.0f m from its GPS position, which agrees with its neighbours' in capture order: "
+                  "a false registration (repetitive texture?), de-registered%s",
+                  distance_m, gps_strikes_[image] >= 2 ? " twice, left out" : "");
+    status_[image].registered = false;
+    status_[image].why_not = text;
+    ReportProgress(options_.progress, static_cast<double>(NumRegistered()) / model_.images.size(),
+                   model_.images[image].name + ": " + text);
   }
 
   // Removes points without two observations and renumbers.
@@ -548,6 +634,7 @@ class Mapper {
   std::vector<int> point_of_track_;
   std::vector<ImageRegistration> status_;
   std::vector<int> failures_;
+  std::vector<int> gps_strikes_;  // de-registrations against the GPS, per image
   std::map<int, bool> has_pair_;
   std::vector<std::optional<Eigen::Vector3d>> gps_;
   int adjustments_ = 0;

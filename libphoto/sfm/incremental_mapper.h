@@ -20,6 +20,19 @@
 // predicted position (which lets weakly textured frames, such as bare
 // fields, register), then PnP as usual. The result says, per image, whether
 // it registered and why not.
+//
+// Registrations are checked against the GPS as the model grows (after each
+// global adjustment), so that a false registration on repetitive fields is
+// caught when it happens: once the block is a nadir survey spanning a plane,
+// the model is levelled by its mean optical axis and fitted to the GPS
+// horizontally (a drifting GPS altitude cannot tilt that fit); an image
+// lying more than gps_check_m from its GPS position, whose GPS position
+// agrees with its capture-order neighbours' (so the fix is not the one in
+// error), is de-registered and named. It may come back only through guided
+// matching from its GPS position, whose pose must agree with that position;
+// a second failure leaves it out for good. A GPS fix that jumps away from
+// its neighbours' is the GPS's error: the image stays, and georeferencing
+// judges the fix.
 
 #include <optional>
 #include <string>
@@ -41,6 +54,9 @@ struct MapperOptions {
   // Guided matching of images left out (needs GPS).
   bool gps_rescue = true;
   double rescue_search_radius_px = 250.0;  // offset search, working resolution
+  // Horizontal distance (m) beyond which a registered image disagrees with
+  // its GPS position (see the header); 0: no check.
+  double gps_check_m = 25.0;
 
   int num_threads = 0;
   // Focal-length priors per camera group (see BundleOptions).
@@ -65,6 +81,9 @@ struct MapperResult {
   int dropped_inconsistent_tracks = 0;
   std::string initial_pair;
   int global_adjustments = 0;
+  // Images de-registered because their pose disagreed with their GPS
+  // position (each named in images[i].why_not while left out).
+  std::vector<std::string> gps_deregistered;
 };
 
 // cameras: one per camera group (working-resolution pixels, initial
