@@ -104,6 +104,10 @@ TEST_F(AdjustCommand, WritesReportWithEveryKey) {
   const auto& vc = report["adjustment"]["variance_components"];
   EXPECT_TRUE(vc["estimated"].get<bool>());
   bool ties = false;
+  // The groups' shares of the redundancy add up to the adjustment's.
+  double shares = 0.0;
+  for (const auto& g : vc["groups"]) shares += g["redundancy"].get<double>();
+  EXPECT_NEAR(shares, report["adjustment"]["redundancy"].get<double>(), 1e-6 * shares);
   for (const auto& g : vc["groups"]) {
     if (g["group"] != "tie_points") continue;
     ties = true;
