@@ -521,15 +521,47 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   rect_from_world.row(0) = xhat;
   rect_from_world.row(1) = yhat;
   rect_from_world.row(2) = zhat;
-  const int width = img_a.cols, height = img_a.rows;
   const double f = 0.5 * (ca.focal_px() + cb.focal_px()) * o.image_scale;
-  // Each rectified image keeps its own view centred: its own cx (rows must
-  // share cy). A converging pair then keeps its overlap in frame, and
-  // disparities shift by cxa - cxb (u_a - u_b = f B / z + cxa - cxb).
-  const Eigen::Vector3d ray_a = rect_from_world * za, ray_b = rect_from_world * zb;
-  const double cxa = 0.5 * (width - 1) - f * ray_a.x() / ray_a.z();
-  const double cxb = 0.5 * (width - 1) - f * ray_b.x() / ray_b.z();
-  const double cy = 0.5 * (height - 1) - 0.5 * f * (ray_a.y() / ray_a.z() + ray_b.y() / ray_b.z());
+  // The rectified frame holds the whole of each photo: the bounding box of
+  // its border in rectified coordinates (columns: each photo its own, so a
+  // converging pair keeps its overlap in frame; rows: where both photos
+  // have content, since rows are shared). A frame of the photos' own size
+  // cuts a band off each side of the strip whenever the flight runs along
+  // the photos' y axis (rectification turns them by 90 degrees), and with
+  // it the block's rim from the DSM.
+  struct Extent {
+    double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300;
+  };
+  const double most = 1.5 * std::max(img_a.cols, img_a.rows);  // from the principal ray, either way
+  auto extent_of = [&](const Image& im, const Camera& cam) {
+    const Eigen::Matrix3d rect_from_cam = rect_from_world * im.pose.cam_from_world.toRotationMatrix().transpose();
+    const Eigen::Vector3d axis = rect_from_cam.col(2);
+    const double au = f * axis.x() / axis.z(), av = f * axis.y() / axis.z();
+    Extent e;
+    constexpr int kSteps = 32;  // per side: the border bends under distortion
+    for (int side = 0; side < 4; ++side) {
+      for (int k = 0; k <= kSteps; ++k) {
+        const double t = static_cast<double>(k) / kSteps;
+        const double x = side < 2 ? t * cam.width - 0.5 : (side == 2 ? -0.5 : cam.width - 0.5);
+        const double y = side < 2 ? (side == 0 ? -0.5 : cam.height - 0.5) : t * cam.height - 0.5;
+        const auto ray = cam.RayFromImage(Eigen::Vector2d(x, y));
+        if (!ray) continue;
+        const Eigen::Vector3d r = rect_from_cam * *ray;
+        if (r.z() <= 1e-3) continue;
+        const double u = std::clamp(f * r.x() / r.z(), au - most, au + most);
+        const double v = std::clamp(f * r.y() / r.z(), av - most, av + most);
+        e.u0 = std::min(e.u0, u), e.u1 = std::max(e.u1, u);
+        e.v0 = std::min(e.v0, v), e.v1 = std::max(e.v1, v);
+      }
+    }
+    return e;
+  };
+  const Extent ea = extent_of(a, ca), eb = extent_of(b, cb);
+  const double v0 = std::max(ea.v0, eb.v0), v1 = std::min(ea.v1, eb.v1);
+  if (!(ea.u1 > ea.u0) || !(eb.u1 > eb.u0) || !(v1 > v0)) return false;
+  const int width = static_cast<int>(std::ceil(std::max(ea.u1 - ea.u0, eb.u1 - eb.u0))) + 1;
+  const int height = static_cast<int>(std::ceil(v1 - v0)) + 1;
+  const double cxa = -ea.u0, cxb = -eb.u0, cy = -v0;
   const double offset = cxa - cxb;
   auto build_map = [&](const Image& im, const Camera& cam, double cx, cv::Mat* mx, cv::Mat* my) {
     mx->create(height, width, CV_32F);
@@ -546,6 +578,11 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
           continue;
         }
         const Eigen::Vector2d xy = cam.ImageFromCamera(ray);
+        // Outside the photo: no content (-1 marks it, and remaps to black).
+        if (xy.x() < -0.5 || xy.y() < -0.5 || xy.x() > cam.width - 0.5 || xy.y() > cam.height - 0.5) {
+          px[u] = py[u] = -1.0f;
+          continue;
+        }
         px[u] = static_cast<float>((xy.x() + 0.5) * o.image_scale - 0.5);
         py[u] = static_cast<float>((xy.y() + 0.5) * o.image_scale - 0.5);
       }
@@ -588,9 +625,13 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   for (int v = 0; v < height; ++v) {
     const std::int16_t* d = disp.ptr<std::int16_t>(v);
     const float* valid = mxa.ptr<float>(v);
+    const float* valid_b = mxb.ptr<float>(v);
     const cv::Vec3b* colour = ra.ptr<cv::Vec3b>(v);
     for (int u = 0; u < width; ++u) {
       if (d[u] <= min_disp * 16 || valid[u] < 0) continue;
+      // Its match must lie on photo b too (not on the black beyond it).
+      const int ub = static_cast<int>(std::lround(u - d[u] / 16.0));
+      if (ub < 0 || ub >= width || valid_b[ub] < 0) continue;
       const double dd = d[u] / 16.0 - offset;
       if (dd <= 0) continue;
       const double z = f * baseline / dd;
