@@ -152,6 +152,39 @@ TEST(Dense, PairAlongThePhotosYAxisKeepsTheWholeWidthAcrossIt) {
   EXPECT_LT(error[error.size() * 99 / 100], 1.0 * per_px);
 }
 
+TEST(Dense, PhotosWhoseOnlyNeighbourIsWideAreMatched) {
+  // Nadir photos 60 m apart at 80 m (41 degrees: a fixed-wing's sparse
+  // return strip): no neighbour at the preferred 3-25 degrees, so the wide
+  // one is taken rather than none. Its disparities are some 500 px in
+  // 800 px wide photos: the search must start near them, not at 0 in a's
+  // own frame, or SGBM leaves no column to match.
+  const Pose a = Looking({-30, 0, 80}, {1, 0, 0}, {0, 0, -1});
+  const Pose b = Looking({30, 0, 80}, {1, 0, 0}, {0, 0, -1});
+  const SparseModel model = TwoViewModel(a, b);
+  ASSERT_GE(model.points.size(), 30u);
+  testing::TempDir dir;
+  DenseSummary summary;
+  const DenseCloud cloud = Densify(model, dir.path() / "depth", &summary);
+  EXPECT_EQ(summary.pairs, 2);
+  EXPECT_EQ(summary.pairs_failed, 0);
+  // The overlap is 80 * 800 / 700 - 60 = 31 m wide: most of it is matched.
+  ASSERT_GT(cloud.positions.size(), 20000u);
+  std::vector<double> east, error;
+  for (const Eigen::Vector3d& x : cloud.positions) {
+    east.push_back(x.x());
+    error.push_back(std::abs(x.z() - TerrainHeight(x.x(), x.y(), kRelief)));
+  }
+  std::sort(east.begin(), east.end());
+  std::sort(error.begin(), error.end());
+  const double width = east[east.size() * 99 / 100] - east[east.size() / 100];
+  const double per_px = 80.0 * 80.0 / (60.0 * 700.0);  // depth per pixel of disparity
+  std::printf("overlap matched %.1f m wide; height error median %.3f m, 90th percentile %.3f m\n", width,
+              error[error.size() / 2], error[error.size() * 9 / 10]);
+  EXPECT_GT(width, 0.7 * (80.0 * 800.0 / 700.0 - 60.0));
+  EXPECT_LT(error[error.size() / 2], 0.5 * per_px);
+  EXPECT_LT(error[error.size() * 9 / 10], 2.0 * per_px);
+}
+
 TEST(Dense, PairMovingAlongItsViewIsNotMatched) {
   // Forward motion (a ground-level walk): the epipole lies in the image and
   // rectification would leave nothing to match; the pair is set aside and

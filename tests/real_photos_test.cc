@@ -59,11 +59,12 @@ TEST(RealPhotos, BeachDroneSetRegistersEveryPhotoAndGivesADsm) {
   EXPECT_GT(r["dense"]["points"].get<long long>(), 1000000);
   EXPECT_TRUE(fs::exists(dir.path() / "dsm.tif"));
   EXPECT_TRUE(fs::exists(dir.path() / "cloud.las"));
-  // The DSM against the ground the photos cover (issue 17's target is 90 %;
-  // 84.6 % measured: the rest is forest canopy at the block's north-west rim).
+  // The DSM against the ground the photos cover: 95.3 % measured (83.2 %
+  // while rectified frames cut the strips' rims, flown here at 45 deg yaw);
+  // what is left is water and the forest's edge.
   const double coverage = r["dsm"]["footprint_coverage"]["fraction"];
   std::printf("DSM coverage of the ground seen by 2 or more photos: %.1f %%\n", 100.0 * coverage);
-  EXPECT_GT(coverage, 0.80);
+  EXPECT_GT(coverage, 0.90);
   // A nadir flight, level: the adjusted cameras look down.
   EXPECT_TRUE(r["adjustment"]["attitude"]["nadir_block"].get<bool>());
   EXPECT_LT(r["adjustment"]["attitude"]["mean_axis_tilt_deg"].get<double>(), 5.0);
@@ -107,12 +108,12 @@ TEST(RealPhotos, FixedWingSetRegistersAllButTheBareFieldAtAStripEnd) {
     }
   }
   EXPECT_GT(r["dense"]["points"].get<long long>(), 1000000);
-  // Issue 17's target is 90 % of the ground seen by 2 or more photos; 71.5 %
-  // measured (51.5 % before pairs across strips and lone maps): low-texture
-  // fields between strips stay open.
+  // 92.9 % of the ground seen by 2 or more photos measured (71.2 % before
+  // whole rectified frames, wide pairs for the sparse return strips and
+  // SGBM's search started at the pair's disparities).
   const double coverage = r["dsm"]["footprint_coverage"]["fraction"];
   std::printf("DSM coverage of the ground seen by 2 or more photos: %.1f %%\n", 100.0 * coverage);
-  EXPECT_GT(coverage, 0.65);
+  EXPECT_GT(coverage, 0.90);
   EXPECT_TRUE(r["adjustment"]["attitude"]["nadir_block"].get<bool>());
   EXPECT_LT(r["adjustment"]["attitude"]["mean_axis_tilt_deg"].get<double>(), 5.0);
 }

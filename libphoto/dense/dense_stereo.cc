@@ -83,6 +83,17 @@ std::vector<std::vector<Partner>> ChoosePartners(const SparseModel& model, const
     for (size_t k = 0; k < scored[i].size() && static_cast<int>(k) < o.partners_per_image; ++k) {
       best[i].push_back(scored[i][k].second);
     }
+    // A photo with no neighbour at the preferred angles (a strip flown with
+    // sparse exposures, or its end at a turn) takes its best wide ones (up
+    // to max_angle_across_deg) rather than none: its ground would otherwise
+    // be in no depth map of its own.
+    if (best[i].empty()) {
+      std::sort(wide_scored[i].begin(), wide_scored[i].end(),
+                [](const auto& a, const auto& b) { return a.first > b.first; });
+      for (size_t k = 0; k < wide_scored[i].size() && static_cast<int>(k) < o.partners_per_image; ++k) {
+        best[i].push_back(wide_scored[i][k].second);
+      }
+    }
     // Across the strip as well as along it: the best partner whose baseline
     // turns at least 45 degrees from the best one's (a neighbouring strip),
     // so that ground seen from two strips is matched too.
@@ -559,10 +570,27 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   const Extent ea = extent_of(a, ca), eb = extent_of(b, cb);
   const double v0 = std::max(ea.v0, eb.v0), v1 = std::min(ea.v1, eb.v1);
   if (!(ea.u1 > ea.u0) || !(eb.u1 > eb.u0) || !(v1 > v0)) return false;
-  const int width = static_cast<int>(std::ceil(std::max(ea.u1 - ea.u0, eb.u1 - eb.u0))) + 1;
+  // Disparity range from image a's sparse points (2nd to 98th percentile,
+  // widened by 15 % of depth either way).
+  std::vector<double> disparities;
+  for (const Observation& obs : model.observations) {
+    if (obs.image != i) continue;
+    const double z = zhat.dot(model.points[obs.point].position - ci);
+    if (z > 0) disparities.push_back(f * baseline / z);
+  }
+  if (disparities.size() < 20) return false;
+  std::sort(disparities.begin(), disparities.end());
+  const double dlo = disparities[disparities.size() / 50];
+  const double dhi = disparities[disparities.size() - 1 - disparities.size() / 50];
+  // Photo b's frame is shifted onto a's so that the search starts at
+  // disparity 0 (u_a - u_b = f B / z + cxa - cxb): SGBM leaves the first
+  // min + num columns of a unmatched, and a wide pair's disparities of a
+  // thousand pixels would leave nothing. Photo b needs only the columns
+  // that a's ground falls on.
+  const int width = static_cast<int>(std::ceil(ea.u1 - ea.u0)) + 1;
   const int height = static_cast<int>(std::ceil(v1 - v0)) + 1;
-  const double cxa = -ea.u0, cxb = -eb.u0, cy = -v0;
-  const double offset = cxa - cxb;
+  const double offset = 8.0 - std::floor(dlo * 0.85);
+  const double cxa = -ea.u0, cxb = cxa - offset, cy = -v0;
   auto build_map = [&](const Image& im, const Camera& cam, double cx, cv::Mat* mx, cv::Mat* my) {
     mx->create(height, width, CV_32F);
     my->create(height, width, CV_32F);
@@ -593,19 +621,8 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   build_map(b, cb, cxb, &mxb, &myb);
   cv::remap(img_a, ra, mxa, mya, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
   cv::remap(img_b, rb, mxb, myb, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
-  // Disparity range from the sparse points seen by both.
-  std::vector<double> disparities;
-  for (const Observation& obs : model.observations) {
-    if (obs.image != i) continue;
-    const double z = zhat.dot(model.points[obs.point].position - ci);
-    if (z > 0) disparities.push_back(f * baseline / z);
-  }
-  if (disparities.size() < 20) return false;
-  std::sort(disparities.begin(), disparities.end());
-  const double dlo = disparities[disparities.size() / 50];
-  const double dhi = disparities[disparities.size() - 1 - disparities.size() / 50];
-  const int min_disp = static_cast<int>(std::floor(dlo * 0.85 + offset)) - 8;
-  int num_disp = static_cast<int>(std::ceil(dhi * 1.15 + offset)) + 8 - min_disp;
+  const int min_disp = 0;
+  int num_disp = static_cast<int>(std::ceil(dhi * 1.15 + offset)) + 8;
   num_disp = std::clamp(((num_disp + 15) / 16) * 16, 16, 1024);
   // SGBM matches the columns [max(0, min+num), width + min(0, min)) of image
   // a; a pair whose search range leaves too few of them (a close-range,

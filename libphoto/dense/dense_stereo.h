@@ -8,10 +8,13 @@
 //  1. Each registered image is paired with the neighbours (two by default)
 //     that share the most sparse points at a triangulation angle between 3
 //     and 25 degrees, and with the best one across the strip when those two
-//     are both along it.
+//     are both along it; an image with none at those angles takes its best
+//     at up to 55 degrees.
 //  2. The pair is rectified by Fusiello's construction (common rotation with
 //     x along the baseline), through the exact Brown model of each camera, so
-//     that disparity is horizontal whatever the flight direction.
+//     that disparity is horizontal whatever the flight direction. The
+//     rectified frame holds the whole of the first photo, and the second is
+//     shifted onto it so that the disparity search starts at 0.
 //  3. SGBM disparities (range from the sparse points, left-right check) are
 //     turned into points in the adjustment frame (ENU).
 //  4. Each depth map's points go to a file; they are then fused tile by tile
@@ -54,7 +57,11 @@ struct DenseOptions {
   bool partner_across = true;
   double min_angle_deg = 3.0;
   double max_angle_deg = 25.0;
-  double max_angle_across_deg = 40.0;  // for the partner across the strip
+  // For the partner across the strip, and for a photo with no neighbour at
+  // the preferred angles (sparse exposures, a strip's end at a turn): at
+  // 64 m above ground a fixed-wing's return strip, exposed every 55 m, has
+  // its consecutive photos 47 degrees apart.
+  double max_angle_across_deg = 55.0;
   int block_size = 5;         // SGBM matching window (px)
   double image_scale = 1.0;   // of the working-resolution images
   int num_threads = 0;
