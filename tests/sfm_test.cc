@@ -13,6 +13,7 @@
 #include "libphoto/geometry/pose_estimation.h"
 #include "libphoto/sfm/guided_matching.h"
 #include "libphoto/sfm/incremental_mapper.h"
+#include "georef/similarity.h"
 #include "libphoto/sfm/tracks.h"
 #include "libphoto/simulate/synthetic_survey.h"
 #include "tests/test_util.h"
@@ -402,6 +403,88 @@ TEST(IncrementalMapper, AFalseRegistrationIsCaughtByTheGpsWhenItHappens) {
                                                 blundered);
   EXPECT_TRUE(b.gps_deregistered.empty());
   for (int i = 0; i < n; ++i) EXPECT_TRUE(b.images[i].registered) << s.names[i] << ": " << b.images[i].why_not;
+}
+
+// A block whose two halves share no tie point (a field bare of texture
+// between them): the half the main model leaves out is reconstructed on its
+// own and placed by its GPS, its seam with the main model held by GPS alone;
+// without GPS it cannot be placed and each of its photos says why.
+TEST(IncrementalMapper, PhotosWithNoTiesToTheMainModelFormAComponentPlacedByTheGps) {
+  const SyntheticMatches s = MakeMatches(11, 0.3);
+  const int n = static_cast<int>(s.names.size());
+  double mid = 0.0;
+  for (int i = 0; i < n; ++i) mid += s.truth.images[i].pose.centre_in_world.x() / n;
+  std::vector<int> east(n);
+  for (int i = 0; i < n; ++i) east[i] = s.truth.images[i].pose.centre_in_world.x() > mid;
+  std::vector<PairMatches> matches;
+  for (const PairMatches& m : s.matches) {
+    if (east[m.i] == east[m.j]) matches.push_back(m);
+  }
+  ASSERT_LT(matches.size(), s.matches.size());
+  std::vector<std::optional<Eigen::Vector3d>> gps(n);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 2.0);
+  for (int i = 0; i < n; ++i) {
+    gps[i] = s.truth.images[i].pose.centre_in_world + Eigen::Vector3d(noise(rng), noise(rng), 2.0 * noise(rng));
+  }
+  Camera start = Camera::Create(CameraModelId::kBrown, 1200.0, 1600, 1200);
+  MapperOptions options;
+  options.num_threads = 2;
+  options.gps_rescue = false;  // these keypoints carry no descriptors to match from
+  const std::vector<int> camera_of_image(n, 0);
+  const MapperResult r = ReconstructIncremental(s.names, camera_of_image, {start}, s.features, matches, options, gps);
+  ASSERT_EQ(r.component_images.size(), 2u);
+  EXPECT_EQ(r.component_images[0] + r.component_images[1], n);
+  std::vector<Eigen::Vector3d> main_model, main_truth;
+  for (int i = 0; i < n; ++i) {
+    ASSERT_TRUE(r.images[i].registered) << s.names[i] << ": " << r.images[i].why_not;
+    // Each component is one half of the block.
+    EXPECT_EQ(east[i] == east[0], r.component[i] == r.component[0]) << s.names[i];
+    if (r.component[i] == 0) {
+      main_model.push_back(r.model.images[i].pose.centre_in_world);
+      main_truth.push_back(s.truth.images[i].pose.centre_in_world);
+    }
+  }
+  // The main model in the truth frame; the other half, placed by 2 m / 4 m
+  // GPS on its own photos, lies where its GPS says: within a few metres,
+  // not metres-perfect and not tens of metres off.
+  const auto truth_from_main = FitSimilarity(main_model, main_truth);
+  ASSERT_TRUE(truth_from_main.has_value());
+  double sum = 0.0;
+  int count = 0;
+  for (int i = 0; i < n; ++i) {
+    if (r.component[i] != 1) continue;
+    sum += (truth_from_main->Apply(r.model.images[i].pose.centre_in_world) -
+            s.truth.images[i].pose.centre_in_world).squaredNorm();
+    ++count;
+  }
+  const double rms = std::sqrt(sum / count);
+  std::printf("components of %d and %d photos; the second placed by GPS within %.2f m RMS\n",
+              r.component_images[0], r.component_images[1], rms);
+  EXPECT_LT(rms, 6.0);
+  // Its points came along, in the same frame: they reproject into its photos.
+  int observed_in_second = 0;
+  for (const Observation& obs : r.model.observations) {
+    if (r.component[obs.image] != 1) continue;
+    const Image& image = r.model.images[obs.image];
+    const Eigen::Vector2d xy =
+        r.model.cameras[image.camera].ImageFromCamera(image.pose.CamFromWorld(r.model.points[obs.point].position));
+    EXPECT_LT((xy - obs.xy).norm(), 10.0);
+    ++observed_in_second;
+  }
+  EXPECT_GT(observed_in_second, 1000);
+
+  // Without GPS the second half cannot be placed: left out, saying why.
+  const MapperResult alone = ReconstructIncremental(s.names, camera_of_image, {start}, s.features, matches, options);
+  ASSERT_EQ(alone.component_images.size(), 1u);
+  int left_out = 0;
+  for (int i = 0; i < n; ++i) {
+    if (alone.images[i].registered) continue;
+    ++left_out;
+    EXPECT_NE(alone.images[i].why_not.find("none with the main model"), std::string::npos) << alone.images[i].why_not;
+  }
+  EXPECT_EQ(left_out + alone.component_images[0], n);
+  EXPECT_GE(left_out, kMinComponentImages);
 }
 
 }  // namespace

@@ -36,6 +36,7 @@
 //   FOCAL_WEAKLY_DETERMINED    warning  f refined as asked on a block that cannot carry it
 //   INTRINSICS_CORRELATED      warning  f or the principal point correlated beyond 0.9 with another intrinsic
 //   IMAGES_NOT_REGISTERED      warning  photos left out of the model
+//   MODEL_SPLIT                warning  groups of photos with no tie points between them, placed by GPS
 //   NOTHING_REGISTERED         error    fewer than two photos in the model: no survey
 //   NOT_GEOREFERENCED          warning  no GPS and no control: arbitrary frame and scale
 //   INPUT                      warning  a problem with an input file (skipped)

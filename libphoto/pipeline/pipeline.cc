@@ -223,8 +223,10 @@ bool RunReconstructStage(const PipelineOptions& o) {
   doc.dropped_inconsistent_tracks = result.dropped_inconsistent_tracks;
   doc.global_adjustments = result.global_adjustments;
   doc.registered = static_cast<int>(registered.images.size());
+  doc.component_images = result.component_images;
   for (size_t i = 0; i < ingest.names.size(); ++i) {
-    ReconstructionRecord::Image im{ingest.names[i], result.images[i].registered, ""};
+    ReconstructionRecord::Image im{ingest.names[i], result.images[i].registered, "",
+                                   i < result.component.size() ? result.component[i] : -1};
     if (!ingest.usable[i]) {
       im.why_not = "unusable image (unreadable or undecodable)";
     } else if (!im.registered) {
@@ -357,6 +359,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   for (const ReconstructionRecord::Image& im : recon.images) {
     json entry = {{"name", im.name}, {"registered", im.registered}};
     if (!im.registered) entry["why_not"] = im.why_not;
+    if (im.registered && im.component >= 0) entry["component"] = im.component;
     if (const auto e = image_error.find(im.name); e != image_error.end() && e->second.second > 0) {
       entry["reprojection_rms_px"] = std::sqrt(e->second.first / e->second.second);
       entry["observations"] = e->second.second;
@@ -367,7 +370,9 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
     images.push_back(entry);
   }
   report["images"] = {{"total", ingest.names.size()}, {"registered", registered}, {"per_image", images}};
-  report["reconstruction"] = {{"initial_pair", recon.initial_pair}, {"tracks", recon.tracks}};
+  report["reconstruction"] = {{"initial_pair", recon.initial_pair},
+                              {"tracks", recon.tracks},
+                              {"component_images", recon.component_images}};
   if (fs::exists(o.workspace / "matches.json")) {
     const json m = ToJson(LoadMatchRecord(o));
     report["matching"] = {{"strategy", m.at("strategy")},
@@ -414,6 +419,24 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
           std::to_string(unregistered.size()) + " of " + std::to_string(ingest.names.size()) +
               " photos are not in the model (report images.per_image says why): " + JoinNames(unregistered),
           unregistered));
+    }
+    if (recon.component_images.size() > 1) {
+      std::vector<std::string> placed;
+      std::string sizes;
+      for (const ReconstructionRecord::Image& im : recon.images) {
+        if (im.registered && im.component > 0) placed.push_back(im.name);
+      }
+      for (size_t k = 1; k < recon.component_images.size(); ++k) {
+        sizes += (k > 1 ? ", " : "") + std::to_string(recon.component_images[k]);
+      }
+      findings.push_back(Finding::Warning(
+          "MODEL_SPLIT",
+          "the photos form " + std::to_string(recon.component_images.size()) +
+              " groups with no tie points between them: the main one of " +
+              std::to_string(recon.component_images[0]) + " photos, and " + sizes +
+              " placed by their own GPS; across the seams the relative accuracy is the GPS's, not the "
+              "photos' (more overlap, or control in every group, closes them): " + JoinNames(placed),
+          placed));
     }
     if (registered < 2) {
       findings.push_back(Finding::Error(

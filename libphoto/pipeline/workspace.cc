@@ -264,6 +264,7 @@ nlohmann::json ToJson(const ReconstructionRecord& r) {
   for (const ReconstructionRecord::Image& im : r.images) {
     nlohmann::json j = {{"name", im.name}, {"registered", im.registered}};
     if (!im.registered) j["why_not"] = im.why_not;
+    if (im.registered && im.component >= 0) j["component"] = im.component;
     images.push_back(j);
   }
   return {{"schema_version", ReconstructionRecord::kSchemaVersion},
@@ -272,6 +273,7 @@ nlohmann::json ToJson(const ReconstructionRecord& r) {
           {"dropped_inconsistent_tracks", r.dropped_inconsistent_tracks},
           {"global_adjustments", r.global_adjustments},
           {"registered", r.registered},
+          {"component_images", r.component_images},
           {"images", images},
           {"options", r.options}};
 }
@@ -284,11 +286,13 @@ ReconstructionRecord ReconstructionRecordFromJson(const nlohmann::json& doc, con
   r.dropped_inconsistent_tracks = doc.value("dropped_inconsistent_tracks", 0);
   r.global_adjustments = doc.value("global_adjustments", 0);
   r.registered = Field<int>(doc, "registered", path);
+  r.component_images = doc.value("component_images", std::vector<int>{r.registered});
   for (const auto& im : Field<nlohmann::json>(doc, "images", path)) {
     ReconstructionRecord::Image image;
     image.name = Field<std::string>(im, "name", path);
     image.registered = Field<bool>(im, "registered", path);
     image.why_not = im.value("why_not", "");
+    image.component = im.value("component", -1);
     r.images.push_back(image);
   }
   r.options = doc.value("options", nlohmann::json());

@@ -98,8 +98,12 @@ struct ReconstructionRecord {
     std::string name;
     bool registered = false;
     std::string why_not;  // when not registered
+    int component = -1;   // when registered: 0 the main model, k a further component
   };
   std::vector<Image> images;  // every ingested image, in ingest order
+  // Registered photos per component: the main model, then groups with no
+  // tie points to it, placed by their GPS (MapperResult::component_images).
+  std::vector<int> component_images;
   nlohmann::json options;     // ReconstructFingerprint at the time
 };
 nlohmann::json ToJson(const ReconstructionRecord& record);

@@ -5,9 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <set>
+#include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
 
 #include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/adjust/findings.h"
 #include "libphoto/adjust/gnss_drift.h"
 #include "libphoto/base/error.h"
 #include "georef/similarity.h"
@@ -640,6 +643,138 @@ class Mapper {
   int adjustments_ = 0;
 };
 
+// The similarity from a model's frame to the GPS frame: robust over the
+// registered images with GPS, or, where their positions lie along a line
+// (a single strip), levelled by the mean optical axis and fitted in plan.
+std::optional<Similarity> GpsFromModel(const SparseModel& model,
+                                       const std::vector<std::optional<Eigen::Vector3d>>& gps) {
+  std::vector<Eigen::Vector3d> from, to;
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    if (!model.images[i].registered || i >= gps.size() || !gps[i]) continue;
+    from.push_back(model.images[i].pose.centre_in_world);
+    to.push_back(*gps[i]);
+    axis += model.images[i].pose.cam_from_world.conjugate() * Eigen::Vector3d::UnitZ();
+  }
+  if (from.size() < 3) return std::nullopt;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& t : to) mean += t.head<2>() / static_cast<double>(to.size());
+  Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
+  for (const auto& t : to) spread += (t.head<2>() - mean) * (t.head<2>() - mean).transpose();
+  const Eigen::Vector2d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues();
+  if (ev(1) <= 0.0) return std::nullopt;
+  if (ev(0) > 0.01 * ev(1)) {  // across-strip spread above a tenth of the length
+    const auto fit = FitSimilarityRobust(from, to, 15.0, 3);
+    if (fit && fit->num_inliers >= 3) return fit->transform;
+    return std::nullopt;
+  }
+  const auto fit = FitLevelledSimilarity(from, to, axis.normalized(), 15.0);
+  if (fit && fit->num_inliers >= 2) return fit->transform;
+  return std::nullopt;
+}
+
+// Further components among the photos the main model left out (see the
+// header).
+void AddComponents(const std::vector<std::string>& names, const std::vector<int>& camera_of_image,
+                   const std::vector<ImageFeatures>& features, const std::vector<PairMatches>& matches,
+                   const MapperOptions& options, const std::vector<std::optional<Eigen::Vector3d>>& gps,
+                   MapperResult* result) {
+  const size_t n = names.size();
+  const std::set<std::string> struck(result->gps_deregistered.begin(), result->gps_deregistered.end());
+  std::set<int> tried;  // images a component attempt has seen, registered or not
+  std::optional<Similarity> gps_from_main = GpsFromModel(result->model, gps);
+  while (true) {
+    std::vector<int> left;
+    for (size_t i = 0; i < n; ++i) {
+      if (!result->model.images[i].registered && !struck.count(names[i]) && !tried.count(static_cast<int>(i)) &&
+          !features[i].keypoints.empty()) {
+        left.push_back(static_cast<int>(i));
+      }
+    }
+    if (static_cast<int>(left.size()) < kMinComponentImages) return;
+    std::vector<int> local(n, -1);
+    for (size_t k = 0; k < left.size(); ++k) local[left[k]] = static_cast<int>(k);
+    std::vector<std::string> sub_names;
+    std::vector<int> sub_cameras;
+    std::vector<ImageFeatures> sub_features;
+    std::vector<std::optional<Eigen::Vector3d>> sub_gps;
+    for (int i : left) {
+      sub_names.push_back(names[i]);
+      sub_cameras.push_back(camera_of_image[i]);
+      sub_features.push_back(features[i]);
+      sub_gps.push_back(static_cast<size_t>(i) < gps.size() ? gps[i] : std::nullopt);
+    }
+    std::vector<PairMatches> sub_matches;
+    for (const PairMatches& m : matches) {
+      if (local[m.i] < 0 || local[m.j] < 0) continue;
+      PairMatches copy = m;
+      copy.i = local[m.i];
+      copy.j = local[m.j];
+      sub_matches.push_back(std::move(copy));
+    }
+    if (sub_matches.empty()) return;
+    MapperOptions sub_options = options;
+    sub_options.progress = nullptr;
+    Mapper mapper(sub_names, sub_cameras, result->model.cameras, sub_features, sub_matches, sub_options, sub_gps);
+    MapperResult sub = mapper.Run();
+    std::vector<int> members;
+    for (size_t k = 0; k < left.size(); ++k) {
+      if (sub.model.images[k].registered) members.push_back(static_cast<int>(k));
+    }
+    if (members.empty()) return;
+    if (static_cast<int>(members.size()) < kMinComponentImages) {
+      // Nothing more to build from these photos; try the rest without them.
+      for (int k : members) tried.insert(left[k]);
+      if (sub.initial_pair.empty()) return;  // no pair to start from among them at all
+      continue;
+    }
+    for (int k : members) tried.insert(left[k]);
+    const int index = static_cast<int>(result->component_images.size());
+    const std::optional<Similarity> gps_from_sub = GpsFromModel(sub.model, sub_gps);
+    std::vector<std::string> member_names;
+    for (int k : members) member_names.push_back(sub_names[k]);
+    if (!gps_from_main || !gps_from_sub) {
+      const std::string why =
+          "in a separate group of " + std::to_string(members.size()) +
+          " photos that share tie points with each other but none with the main model; without GPS on 3 or "
+          "more photos of both there is nothing to place it by (" + JoinNames(member_names, 5) + ")";
+      for (int k : members) result->images[left[k]].why_not = why;
+      continue;
+    }
+    // main <- GPS <- sub
+    const Similarity main_from_gps = gps_from_main->Inverse();
+    const Similarity& s1 = *gps_from_sub;
+    const Eigen::Quaterniond rotation = main_from_gps.rotation * s1.rotation;
+    auto place = [&](const Eigen::Vector3d& x) { return main_from_gps.Apply(s1.Apply(x)); };
+    for (int k : members) {
+      Image& image = result->model.images[left[k]];
+      const Pose& pose = sub.model.images[k].pose;
+      image.pose.centre_in_world = place(pose.centre_in_world);
+      image.pose.cam_from_world = (pose.cam_from_world * rotation.conjugate()).normalized();
+      image.registered = true;
+      result->images[left[k]] = sub.images[k];
+      result->images[left[k]].registered = true;
+      result->component[left[k]] = index;
+    }
+    const int offset = static_cast<int>(result->model.points.size());
+    for (Point p : sub.model.points) {
+      p.position = place(p.position);
+      p.id = static_cast<int>(result->model.points.size()) + 1;
+      result->model.points.push_back(p);
+    }
+    for (Observation obs : sub.model.observations) {
+      if (!sub.model.images[obs.image].registered) continue;
+      obs.image = left[obs.image];
+      obs.point += offset;
+      result->model.observations.push_back(obs);
+    }
+    result->component_images.push_back(static_cast<int>(members.size()));
+    ReportProgress(options.progress, 1.0,
+                   "a further component of " + std::to_string(members.size()) +
+                       " photos with no tie points to the main model, placed by GPS: " + JoinNames(member_names, 5));
+  }
+}
+
 }  // namespace
 
 MapperResult ReconstructIncremental(const std::vector<std::string>& names,
@@ -651,7 +786,18 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
                                     const std::vector<std::optional<Eigen::Vector3d>>& gps_enu) {
   AEROTRI_CHECK(names.size() == camera_of_image.size() && names.size() == features.size());
   Mapper mapper(names, camera_of_image, cameras, features, matches, options, gps_enu);
-  return mapper.Run();
+  MapperResult result = mapper.Run();
+  result.component.assign(names.size(), -1);
+  int main_images = 0;
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (result.model.images[i].registered) {
+      result.component[i] = 0;
+      ++main_images;
+    }
+  }
+  result.component_images = {main_images};
+  if (main_images >= 2) AddComponents(names, camera_of_image, features, matches, options, gps_enu, &result);
+  return result;
 }
 
 }  // namespace aerotri

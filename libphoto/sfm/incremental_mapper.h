@@ -21,6 +21,15 @@
 // fields, register), then PnP as usual. The result says, per image, whether
 // it registered and why not.
 //
+// Photos left out that share tie points among themselves (at least
+// kMinComponentImages of them, e.g. strips on the far side of a field bare
+// of texture) form a further component: reconstructed on their own from the
+// main model's calibration and placed in its frame through both models'
+// similarity to the GPS (or, for a single strip, levelled by its mean
+// optical axis and fitted in plan). The seam between components is then held
+// by GPS alone; without GPS a component cannot be placed and its photos are
+// left out, each saying so.
+//
 // Registrations are checked against the GPS as the model grows (after each
 // global adjustment), so that a false registration on repetitive fields is
 // caught when it happens: once the block is a nadir survey spanning a plane,
@@ -84,7 +93,17 @@ struct MapperResult {
   // Images de-registered because their pose disagreed with their GPS
   // position (each named in images[i].why_not while left out).
   std::vector<std::string> gps_deregistered;
+  // Per image: 0 for the main model, k for the k-th further component (a
+  // group of photos with tie points among themselves but none to the main
+  // model, reconstructed on its own and placed by its GPS); -1 when not
+  // registered.
+  std::vector<int> component;
+  // Registered photos per component (main model first).
+  std::vector<int> component_images;
 };
+
+// Smallest further component that is kept.
+constexpr int kMinComponentImages = 3;
 
 // cameras: one per camera group (working-resolution pixels, initial
 // intrinsics); camera_of_image indexes them; names are the image names.
