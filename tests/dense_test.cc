@@ -89,6 +89,22 @@ DenseCloud Densify(const SparseModel& model, const std::filesystem::path& dir, D
   return ComputeDenseCloud(model, [&](int i) { return images.at(i).clone(); }, o, nullptr, summary);
 }
 
+// A cloud's east coordinates and height errors against the terrain, each
+// sorted (for its extent and error percentiles).
+struct SortedCloud {
+  std::vector<double> east, error;
+};
+SortedCloud Sorted(const DenseCloud& cloud) {
+  SortedCloud out;
+  for (const Eigen::Vector3d& x : cloud.positions) {
+    out.east.push_back(x.x());
+    out.error.push_back(std::abs(x.z() - TerrainHeight(x.x(), x.y(), kRelief)));
+  }
+  std::sort(out.east.begin(), out.east.end());
+  std::sort(out.error.begin(), out.error.end());
+  return out;
+}
+
 TEST(Dense, ConvergentPairGivesTheTerrainHeight) {
   // Two cameras 24 m apart at 80 m, each tilted 12 degrees towards the other:
   // the rectified views are centred differently (disparities offset by a few
@@ -130,13 +146,9 @@ TEST(Dense, PairAlongThePhotosYAxisKeepsTheWholeWidthAcrossIt) {
   const DenseCloud cloud = Densify(model, dir.path() / "depth", &summary);
   EXPECT_EQ(summary.pairs, 2);
   ASSERT_GT(cloud.positions.size(), 50000u);
-  std::vector<double> east, error;
-  for (const Eigen::Vector3d& x : cloud.positions) {
-    east.push_back(x.x());
-    error.push_back(std::abs(x.z() - TerrainHeight(x.x(), x.y(), kRelief)));
-  }
-  std::sort(east.begin(), east.end());
-  std::sort(error.begin(), error.end());
+  const SortedCloud sorted = Sorted(cloud);
+  const std::vector<double>& east = sorted.east;
+  const std::vector<double>& error = sorted.error;
   const double across = east[east.size() * 999 / 1000] - east[east.size() / 1000];
   const double footprint = 80.0 * 800.0 / 700.0;  // at the terrain's mean height 0
   std::printf("across the flight: %.1f m of the %.1f m footprint\n", across, footprint);
@@ -169,13 +181,9 @@ TEST(Dense, PhotosWhoseOnlyNeighbourIsWideAreMatched) {
   EXPECT_EQ(summary.pairs_failed, 0);
   // The overlap is 80 * 800 / 700 - 60 = 31 m wide: most of it is matched.
   ASSERT_GT(cloud.positions.size(), 20000u);
-  std::vector<double> east, error;
-  for (const Eigen::Vector3d& x : cloud.positions) {
-    east.push_back(x.x());
-    error.push_back(std::abs(x.z() - TerrainHeight(x.x(), x.y(), kRelief)));
-  }
-  std::sort(east.begin(), east.end());
-  std::sort(error.begin(), error.end());
+  const SortedCloud sorted = Sorted(cloud);
+  const std::vector<double>& east = sorted.east;
+  const std::vector<double>& error = sorted.error;
   const double width = east[east.size() * 99 / 100] - east[east.size() / 100];
   const double per_px = 80.0 * 80.0 / (60.0 * 700.0);  // depth per pixel of disparity
   std::printf("overlap matched %.1f m wide; height error median %.3f m, 90th percentile %.3f m\n", width,
