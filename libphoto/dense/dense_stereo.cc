@@ -533,10 +533,9 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   rect_from_world.row(1) = yhat;
   rect_from_world.row(2) = zhat;
   const double f = 0.5 * (ca.focal_px() + cb.focal_px()) * o.image_scale;
-  // The rectified frame holds the whole of each photo: the bounding box of
-  // its border in rectified coordinates (columns: each photo its own, so a
-  // converging pair keeps its overlap in frame; rows: where both photos
-  // have content, since rows are shared). A frame of the photos' own size
+  // The rectified frame holds the whole of photo a: the bounding box of its
+  // border in rectified coordinates (columns), within the rows where both
+  // photos have content (rows are shared). A frame of the photos' own size
   // cuts a band off each side of the strip whenever the flight runs along
   // the photos' y axis (rectification turns them by 90 degrees), and with
   // it the block's rim from the DSM.
