@@ -681,7 +681,7 @@ void AddComponents(const std::vector<std::string>& names, const std::vector<int>
                    MapperResult* result) {
   const size_t n = names.size();
   const std::set<std::string> struck(result->gps_deregistered.begin(), result->gps_deregistered.end());
-  std::set<int> tried;  // images a component attempt has seen, registered or not
+  std::set<int> tried;  // images an earlier attempt registered (placed or not): not tried again
   std::optional<Similarity> gps_from_main = GpsFromModel(result->model, gps);
   while (true) {
     std::vector<int> left;
