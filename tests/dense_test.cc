@@ -89,6 +89,22 @@ DenseCloud Densify(const SparseModel& model, const std::filesystem::path& dir, D
   return ComputeDenseCloud(model, [&](int i) { return images.at(i).clone(); }, o, nullptr, summary);
 }
 
+// The dense cloud of a two-photo model (each photo's depth map against the
+// other), with the number of sparse points the pair started from.
+struct PairRun {
+  size_t sparse_points = 0;
+  DenseSummary summary;
+  DenseCloud cloud;
+};
+PairRun DensifyPair(const Pose& a, const Pose& b) {
+  const SparseModel model = TwoViewModel(a, b);
+  testing::TempDir dir;
+  PairRun run;
+  run.sparse_points = model.points.size();
+  if (run.sparse_points > 0) run.cloud = Densify(model, dir.path() / "depth", &run.summary);
+  return run;
+}
+
 // A cloud's east coordinates and height errors against the terrain, each
 // sorted (for its extent and error percentiles).
 struct SortedCloud {
@@ -112,15 +128,12 @@ TEST(Dense, ConvergentPairGivesTheTerrainHeight) {
   const double t = 12.0 * kDeg;
   const Pose a = Looking({-12, 0, 80}, {std::cos(t), 0, std::sin(t)}, {std::sin(t), 0, -std::cos(t)});
   const Pose b = Looking({12, 0, 80}, {std::cos(t), 0, -std::sin(t)}, {-std::sin(t), 0, -std::cos(t)});
-  const SparseModel model = TwoViewModel(a, b);
-  ASSERT_GE(model.points.size(), 100u);
-  testing::TempDir dir;
-  DenseSummary summary;
-  const DenseCloud cloud = Densify(model, dir.path() / "depth", &summary);
-  EXPECT_EQ(summary.pairs, 2);
-  ASSERT_GT(cloud.positions.size(), 50000u);
+  const PairRun run = DensifyPair(a, b);
+  ASSERT_GE(run.sparse_points, 100u);
+  EXPECT_EQ(run.summary.pairs, 2);
+  ASSERT_GT(run.cloud.positions.size(), 50000u);
   std::vector<double> error;
-  for (const Eigen::Vector3d& x : cloud.positions) {
+  for (const Eigen::Vector3d& x : run.cloud.positions) {
     error.push_back(std::abs(x.z() - TerrainHeight(x.x(), x.y(), kRelief)));
   }
   std::sort(error.begin(), error.end());
@@ -139,14 +152,11 @@ TEST(Dense, PairAlongThePhotosYAxisKeepsTheWholeWidthAcrossIt) {
   // it and lost a band on each side, the block's rim in a survey.
   const Pose a = Looking({0, -10, 80}, {1, 0, 0}, {0, 0, -1});
   const Pose b = Looking({0, 10, 80}, {1, 0, 0}, {0, 0, -1});
-  const SparseModel model = TwoViewModel(a, b);
-  ASSERT_GE(model.points.size(), 100u);
-  testing::TempDir dir;
-  DenseSummary summary;
-  const DenseCloud cloud = Densify(model, dir.path() / "depth", &summary);
-  EXPECT_EQ(summary.pairs, 2);
-  ASSERT_GT(cloud.positions.size(), 50000u);
-  const SortedCloud sorted = Sorted(cloud);
+  const PairRun run = DensifyPair(a, b);
+  ASSERT_GE(run.sparse_points, 100u);
+  EXPECT_EQ(run.summary.pairs, 2);
+  ASSERT_GT(run.cloud.positions.size(), 50000u);
+  const SortedCloud sorted = Sorted(run.cloud);
   const std::vector<double>& east = sorted.east;
   const std::vector<double>& error = sorted.error;
   const double across = east[east.size() * 999 / 1000] - east[east.size() / 1000];
@@ -172,16 +182,13 @@ TEST(Dense, PhotosWhoseOnlyNeighbourIsWideAreMatched) {
   // own frame, or SGBM leaves no column to match.
   const Pose a = Looking({-30, 0, 80}, {1, 0, 0}, {0, 0, -1});
   const Pose b = Looking({30, 0, 80}, {1, 0, 0}, {0, 0, -1});
-  const SparseModel model = TwoViewModel(a, b);
-  ASSERT_GE(model.points.size(), 30u);
-  testing::TempDir dir;
-  DenseSummary summary;
-  const DenseCloud cloud = Densify(model, dir.path() / "depth", &summary);
-  EXPECT_EQ(summary.pairs, 2);
-  EXPECT_EQ(summary.pairs_failed, 0);
+  const PairRun run = DensifyPair(a, b);
+  ASSERT_GE(run.sparse_points, 30u);
+  EXPECT_EQ(run.summary.pairs, 2);
+  EXPECT_EQ(run.summary.pairs_failed, 0);
   // The overlap is 80 * 800 / 700 - 60 = 31 m wide: most of it is matched.
-  ASSERT_GT(cloud.positions.size(), 20000u);
-  const SortedCloud sorted = Sorted(cloud);
+  ASSERT_GT(run.cloud.positions.size(), 20000u);
+  const SortedCloud sorted = Sorted(run.cloud);
   const std::vector<double>& east = sorted.east;
   const std::vector<double>& error = sorted.error;
   const double width = east[east.size() * 99 / 100] - east[east.size() / 100];
@@ -200,13 +207,10 @@ TEST(Dense, PairMovingAlongItsViewIsNotMatched) {
   const Eigen::Vector3d view(0, std::cos(45 * kDeg), -std::sin(45 * kDeg));
   const Pose a = Looking({0, -70, 60}, {1, 0, 0}, view);
   const Pose b = Looking({0, -50, 60}, {1, 0, 0}, view);
-  const SparseModel model = TwoViewModel(a, b);
-  ASSERT_GE(model.points.size(), 100u);
-  testing::TempDir dir;
-  DenseSummary summary;
-  const DenseCloud cloud = Densify(model, dir.path() / "depth", &summary);
-  EXPECT_EQ(summary.pairs + summary.pairs_failed, 0);
-  EXPECT_TRUE(cloud.positions.empty());
+  const PairRun run = DensifyPair(a, b);
+  ASSERT_GE(run.sparse_points, 100u);
+  EXPECT_EQ(run.summary.pairs + run.summary.pairs_failed, 0);
+  EXPECT_TRUE(run.cloud.positions.empty());
 }
 
 // The fusion rules on depth maps of known content (voxel 0.1 m):
