@@ -1168,7 +1168,8 @@ TEST(Georeferencing, GpsAltitudeDriftIsEstimatedAndDoesNotTiltTheBlock) {
   // The case is hard: the GPS alone would tilt the block by tens of degrees.
   EXPECT_GT(drift.gps_fit_tilt_deg, 10.0);
   ASSERT_TRUE(drift.estimated);
-  EXPECT_TRUE(drift.nadir_prior);
+  EXPECT_TRUE(drift.attitude_prior);
+  EXPECT_EQ(drift.vertical_source, "nadir");
   EXPECT_FALSE(drift.axes[0]);
   EXPECT_FALSE(drift.axes[1]);
   ASSERT_TRUE(drift.axes[2]);
@@ -1215,7 +1216,7 @@ TEST(Georeferencing, GpsDriftUnderControlIsEstimatedAndTheGpsKept) {
   SCOPED_TRACE(report.gps_drift.note);
   const GpsDriftReport& drift = report.gps_drift;
   ASSERT_TRUE(drift.estimated);
-  EXPECT_FALSE(drift.nadir_prior);
+  EXPECT_FALSE(drift.attitude_prior);
   ASSERT_EQ(drift.flights.size(), 1u);
   const double true_rate = 100.0 / (georef.seconds_per_photo * (scene.survey.truth.images.size() - 1));
   const GpsDriftReport::Flight& f = drift.flights[0];
@@ -1236,9 +1237,79 @@ TEST(Georeferencing, CleanGpsIsNotTakenForADrift) {
   EXPECT_TRUE(report.viewing.nadir) << report.viewing.reason;
   EXPECT_TRUE(report.gps_drift.tested);
   EXPECT_FALSE(report.gps_drift.estimated);
-  EXPECT_FALSE(report.gps_drift.nadir_prior);
+  EXPECT_FALSE(report.gps_drift.attitude_prior);
   EXPECT_LT(report.gps_drift.gps_fit_tilt_deg, 3.0);
   EXPECT_LT(report.tilt.mean_axis_tilt_deg, 3.0);
+}
+
+// An oblique block (cameras 30° off nadir towards the image's top, which
+// turns north and south strip by strip) whose GPS altitude drifts by 100 m
+// over the flight. Its optical axes spread too far for the mean one to be
+// taken as the vertical; its gimbal pitches (1° of noise, a compass 8° off,
+// roll not stated) give each photo's vertical instead: every camera within
+// 1° of its true attitude and the drift recovered within its sigma.
+TEST(Georeferencing, ObliqueBlockWithDriftingGpsIsLevelledByItsGimbals) {
+  SyntheticSurveyOptions survey = SurveyOptions(45);
+  survey.gimbal_pitch_deg = -60.0;
+  SyntheticGeorefOptions georef;
+  georef.gps_drift_m = Eigen::Vector3d(0.0, 0.0, 100.0);
+  const SyntheticGeoref scene = MakeSyntheticGeoref(survey, georef);
+  std::mt19937 rng(45);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  GeoreferenceOptions options = Options();
+  for (const Image& image : scene.survey.truth.images) {
+    GimbalAttitude a = AttitudeOf(image.pose);
+    EXPECT_NEAR(a.pitch_deg, -60.0, 8.0) << image.name;
+    a.pitch_deg += noise(rng);
+    a.yaw_deg += 8.0 + noise(rng);
+    options.gimbal[image.name] = a;
+  }
+  std::map<std::string, const Image*> truth;
+  for (const Image& image : scene.survey.truth.images) truth[image.name] = &image;
+  auto worst_attitude_deg = [&](const SparseModel& model) {
+    double worst = 0.0;
+    for (const Image& image : model.images) {
+      if (!image.registered) continue;
+      worst = std::max(worst, RotationAngleDeg(image.pose.cam_from_world, truth.at(image.name)->pose.cam_from_world));
+    }
+    return worst;
+  };
+
+  SparseModel model = ArbitraryFrame(scene.tie_model, 45);
+  const GeoreferenceReport report = GeoreferenceAndAdjust(&model, scene.gps, nullptr, &scene.checks, options);
+  SCOPED_TRACE(report.bundle.BriefReport());
+  SCOPED_TRACE(report.gps_drift.note);
+  EXPECT_FALSE(report.viewing.nadir) << report.viewing.reason;
+  EXPECT_TRUE(report.gimbal_vertical.usable) << report.gimbal_vertical.reason;
+  const GpsDriftReport& drift = report.gps_drift;
+  EXPECT_EQ(drift.vertical_source, "gimbal");
+  EXPECT_GT(drift.gps_fit_tilt_deg, 10.0);
+  EXPECT_TRUE(drift.attitude_prior);
+  ASSERT_TRUE(drift.estimated);
+  ASSERT_TRUE(drift.axes[2]);
+  ASSERT_EQ(drift.flights.size(), 1u);
+  const double true_rate = 100.0 / (georef.seconds_per_photo * (scene.survey.truth.images.size() - 1));
+  const GpsDriftReport::Flight& f = drift.flights[0];
+  ASSERT_GT(f.rate_sigma.z(), 0.0);
+  EXPECT_LT(std::abs(f.rate_m_per_s.z() - true_rate), 3.0 * f.rate_sigma.z());
+  EXPECT_LT(f.rate_sigma.z(), 0.05 * true_rate);
+  EXPECT_LT(worst_attitude_deg(model), 1.0);
+  bool said = false;
+  for (const Finding& finding : report.findings) said |= finding.code == "GPS_DRIFT";
+  EXPECT_TRUE(said);
+
+  // Without the gimbal angles the block has no vertical of its own: the
+  // GPS alone tilts it, and the report says its tilt rests on the GPS.
+  SparseModel blind = ArbitraryFrame(scene.tie_model, 45);
+  const GeoreferenceReport without = GeoreferenceAndAdjust(&blind, scene.gps, nullptr, &scene.checks, Options());
+  EXPECT_TRUE(without.gps_drift.vertical_source.empty());
+  EXPECT_FALSE(without.gps_drift.attitude_prior);
+  EXPECT_GT(worst_attitude_deg(blind), 10.0);
+  const Finding* note = nullptr;
+  for (const Finding& finding : without.findings) {
+    if (finding.code == "VERTICAL_FROM_GPS_ONLY") note = &finding;
+  }
+  ASSERT_NE(note, nullptr);
 }
 
 // Control in plan only (geo_z 'nan'): its height is the adjustment's; the

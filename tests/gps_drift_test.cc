@@ -52,7 +52,7 @@ TEST(GpsDrift, RenderedSurveyWithDriftingAltitudeKeepsItsAttitude) {
 
   EXPECT_GT(drift["gps_fit_tilt_deg"].get<double>(), 10.0);
   ASSERT_TRUE(drift["estimated"].get<bool>());
-  EXPECT_TRUE(drift["nadir_prior"].get<bool>());
+  EXPECT_TRUE(drift["attitude_prior"].get<bool>());
   EXPECT_TRUE(drift["axes"]["u"].get<bool>());
   ASSERT_EQ(drift["flights"].size(), 1u);
   const double true_rate = truth["gps_drift_m_per_s"][2];

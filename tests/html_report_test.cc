@@ -111,8 +111,9 @@ TEST(HtmlReport, AttitudeDriftAndFootprintCoverage) {
                          {"yaw_bias_deg", -6.07}}}}}};
   r["gps_drift"] = {{"note", "levelled by its mean optical axis"},
                     {"estimated", true},
-                    {"nadir_prior", true},
-                    {"nadir_prior_sigma_deg_per_photo", 5.0},
+                    {"vertical_source", "nadir"},
+                    {"attitude_prior", true},
+                    {"attitude_prior_sigma_deg_per_photo", 5.0},
                     {"axes", {{"e", false}, {"n", false}, {"u", true}}},
                     {"flights",
                      {{{"images", 88},
@@ -126,9 +127,11 @@ TEST(HtmlReport, AttitudeDriftAndFootprintCoverage) {
   const std::string html = RenderHtmlReport(r, "");
   EXPECT_NE(html.find("<h2>Attitude and GNSS drift</h2>"), std::string::npos);
   EXPECT_NE(html.find("mean optical axis 0.1&deg;"), std::string::npos);
-  EXPECT_NE(html.find("gimbal angles (18 photos): the block's mean optical axis 0.6&deg; from theirs; per photo "
+  EXPECT_NE(html.find("gimbal angles (18 photos): the block 0.6&deg; off the vertical their pitches state; per photo "
                       "pitch differs by 1.3&deg; (median), 2.8&deg; at most; headings by 3.9&deg; (median) after a "
                       "common compass offset of -6.1&deg;"),
+            std::string::npos);
+  EXPECT_NE(html.find("Tilt held by an attitude prior (the nadir photos' optical axes down) of 5&deg; per photo."),
             std::string::npos);
   EXPECT_NE(html.find("<td>U</td><td>0.5805</td><td>0.5803</td><td>0.0083</td><td>101.0</td>"), std::string::npos)
       << html.substr(html.find("Attitude and GNSS"), 1500);

@@ -94,7 +94,7 @@ struct RoundResult {
   int skipped_points = 0;
   bool offset_estimated = false;
   bool drift_estimated = false;
-  int num_nadir = 0;
+  int num_attitude = 0;
   double setup_s = 0.0;
   std::vector<IntrinsicsPrecision> precision;
   std::string covariance_note;
@@ -707,16 +707,21 @@ class CeresBundleProblem {
     }
   }
 
-  // The nadir attitude prior: every adjusted image's optical axis down.
-  void AddNadirPriors() {
-    if (!(options_.nadir_prior_sigma_deg > 0.0)) return;
-    const double inv_sigma = 1.0 / (options_.nadir_prior_sigma_deg * M_PI / 180.0);
+  // The attitude prior: in every adjusted image the world's down where the
+  // options say (a nadir block's optical axis, an oblique photo's gimbal).
+  void AddAttitudePriors() {
+    if (!(options_.attitude_prior_sigma_deg > 0.0)) return;
+    const double inv_sigma = 1.0 / (options_.attitude_prior_sigma_deg * M_PI / 180.0);
+    const std::vector<Eigen::Vector3d>& down = options_.attitude_prior_down_in_camera;
     for (size_t i = 0; i < model_->images.size(); ++i) {
       if (!config_.image_used[i] || config_.merged[i]) continue;
-      problem_.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<NadirAttitudePrior, 2, 4>(new NadirAttitudePrior{inv_sigma}), nullptr,
-          blocks_->rotations[i].data());
-      ++result_->num_nadir;
+      const Eigen::Vector3d d = down.empty() ? Eigen::Vector3d::UnitZ() : i < down.size() ? down[i]
+                                                                                          : Eigen::Vector3d::Zero();
+      if (!(d.norm() > 0.0)) continue;
+      problem_.AddResidualBlock(new ceres::AutoDiffCostFunction<AttitudePrior, 2, 4>(
+                                    new AttitudePrior{d.normalized(), inv_sigma}),
+                                nullptr, blocks_->rotations[i].data());
+      ++result_->num_attitude;
     }
   }
 
@@ -969,7 +974,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   CeresBundleProblem bundle(model, options, config, &blocks, &result);
   bundle.AddReprojections();
   bundle.AddGpsPriors(gps_offsets, gps_drift);
-  bundle.AddNadirPriors();
+  bundle.AddAttitudePriors();
   bundle.AddIntrinsicsPriors();
   bundle.AddControlPriors();
   bundle.SetManifoldsAndHeldBlocks();
@@ -1295,7 +1300,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     summary.gps_offset_estimated = result.offset_estimated;
     summary.gps_drift_estimated = result.drift_estimated;
     summary.gps_drift_m_per_s = gps_drift;
-    summary.num_nadir_priors = result.num_nadir;
+    summary.num_attitude_priors = result.num_attitude;
     summary.redundancy = result.ceres.num_residuals_reduced - result.ceres.num_effective_parameters_reduced;
     summary.sigma0 = summary.redundancy > 0 ? std::sqrt(2.0 * result.ceres.final_cost / summary.redundancy) : 0.0;
     summary.intrinsics_precision = result.precision;

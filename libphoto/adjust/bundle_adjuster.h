@@ -145,12 +145,16 @@ struct BundleOptions {
   bool estimate_gps_drift = false;
   std::array<bool, 3> gps_drift_axes = {false, false, true};
   std::vector<Eigen::Vector3d> initial_gps_drift_m_per_s;  // per flight (missing: zero)
-  // Attitude prior of a nadir block: each adjusted image's optical axis
-  // points down (−U) with this standard deviation per image (degrees); 0:
-  // none. The tie points fix the images' attitudes relative to each other,
-  // so together the priors hold only the block's common tilt, to about
-  // σ / √n: what GPS heights that drift cannot hold.
-  double nadir_prior_sigma_deg = 0.0;
+  // Attitude prior: in each adjusted image the world's down (−U) lies along
+  // attitude_prior_down_in_camera[i] (camera frame, unit; by image index;
+  // empty: (0, 0, 1) for every image, a nadir block's optical axis; a zero
+  // vector: no prior on that image — an oblique photo without gimbal
+  // angles), with this standard deviation per image (degrees); 0: none.
+  // The tie points fix the images' attitudes relative to each other, so
+  // together the priors hold only the block's common tilt, to about σ / √n:
+  // what GPS heights that drift cannot hold.
+  double attitude_prior_sigma_deg = 0.0;
+  std::vector<Eigen::Vector3d> attitude_prior_down_in_camera;
   // The GNSS antenna's position in the camera frame (metres; x right, y
   // down the image, z along the optical axis): the receiver reads
   // C + Rᵀ l. Zero: the antenna at the camera centre.
@@ -360,7 +364,7 @@ struct BundleSummary {
   // GNSS drift rates per flight (m/s, E N U), when estimated.
   bool gps_drift_estimated = false;
   std::vector<Eigen::Vector3d> gps_drift_m_per_s;
-  int num_nadir_priors = 0;
+  int num_attitude_priors = 0;
 
   std::string linear_solver;
   std::string gauge;            // what anchors the datum

@@ -70,7 +70,7 @@ std::vector<View> ViewsOf(const SparseModel& model, int point_index) {
   return views;
 }
 
-constexpr double kNadirPriorSigmaDeg = 5.0;  // per photo (GpsDriftReport)
+constexpr double kAttitudePriorSigmaDeg = 5.0;  // per photo (GpsDriftReport)
 constexpr double kNoHeightSigmaM = 1e4;      // the vertical prior of a control point in plan only
 
 std::string FormatDegrees(double deg) {
@@ -942,19 +942,34 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
           " triangulated control points)");
     }
     report.datum_source = control_from.empty() ? "GPS" : "GPS and control points";
-    // GPS heights that drift in time would tilt a nadir block (strips are
-    // flown one after another): the block levelled by its mean optical axis
-    // shows the drift as a trend in time of the GPS height residuals. A
-    // trend, or a GPS fit that tilts the block by more than 10°, puts the
-    // nadir attitude prior in charge of the tilt, with the drift estimated.
+    // GPS heights that drift in time would tilt a block (strips are flown
+    // one after another): the block levelled by its own vertical — a nadir
+    // block's mean optical axis, else the gimbal pitches' — shows the drift
+    // as a trend in time of the GPS height residuals. A trend, or a GPS fit
+    // that tilts the block by more than 10°, puts the attitude prior in
+    // charge of the tilt, with the drift estimated.
+    Eigen::Vector3d down_in_model = report.viewing.mean_axis;
+    std::string vertical_note = report.viewing.reason;
+    if (report.viewing.nadir) {
+      drift.vertical_source = "nadir";
+    } else if (!options.gimbal.empty() && !local) {
+      report.gimbal_vertical = MeasureGimbalVertical(*model, options.gimbal);
+      vertical_note = report.viewing.reason + "; " + report.gimbal_vertical.reason;
+      if (report.gimbal_vertical.usable) {
+        drift.vertical_source = "gimbal";
+        down_in_model = report.gimbal_vertical.down_in_model;
+      }
+    }
+    const char* block_kind = drift.vertical_source == "gimbal" ? "oblique" : "nadir";
+    const char* levelled_by = drift.vertical_source == "gimbal" ? "its gimbal pitches" : "its mean optical axis";
     const Eigen::Vector3d down(0.0, 0.0, -1.0);
-    const Eigen::Vector3d fit_axis = fit->transform.rotation * report.viewing.mean_axis;
+    const Eigen::Vector3d fit_axis = fit->transform.rotation * down_in_model;
     drift.gps_fit_tilt_deg = std::atan2(fit_axis.cross(down).norm(), fit_axis.dot(down)) * 180.0 / M_PI;
-    if (!report.viewing.nadir) {
-      drift.note = "not tested: " + report.viewing.reason;
+    if (drift.vertical_source.empty()) {
+      drift.note = "not tested: " + vertical_note;
     } else if (gps_images.size() < 6) {
       drift.note = "not tested: fewer than 6 photos with GPS";
-    } else if (const auto levelled = FitLevelledSimilarity(from, to, report.viewing.mean_axis, threshold)) {
+    } else if (const auto levelled = FitLevelledSimilarity(from, to, down_in_model, threshold)) {
       drift.tested = true;
       std::vector<Eigen::Vector3d> residuals(gps_images.size());
       FlightTimes inliers = flights;
@@ -966,33 +981,41 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
       record_trend(trend);
       const bool drifting = num_timed >= 6 && trend.Significant();
       const bool tilted = drift.gps_fit_tilt_deg > 10.0;
-      char text[240];
+      char text[280];
       if (drifting || tilted) {
         fit = levelled;
-        drift.nadir_prior = true;
-        drift.nadir_prior_sigma_deg = kNadirPriorSigmaDeg;
+        drift.attitude_prior = true;
+        drift.attitude_prior_sigma_deg = kAttitudePriorSigmaDeg;
         drift.estimated = drifting;
         if (drifting) {
           drift.axes = trend.significant_axes;
           attach_flights();
         }
         std::snprintf(text, sizeof text,
-                      "the GPS alone would tilt this nadir block by %.1f deg; levelled by its mean optical axis "
+                      "the GPS alone would tilt this %s block by %.1f deg; levelled by %s "
                       "(attitude prior %.0f deg per photo)%s",
-                      drift.gps_fit_tilt_deg, kNadirPriorSigmaDeg,
+                      block_kind, drift.gps_fit_tilt_deg, levelled_by, kAttitudePriorSigmaDeg,
                       drifting ? ", the GPS drift estimated per flight" : "");
       } else if (num_timed < 6) {
         std::snprintf(text, sizeof text,
-                      "no capture times: drift in time not tested; the GPS fit tilts the block %.1f deg",
-                      drift.gps_fit_tilt_deg);
+                      "no capture times: drift in time not tested; the GPS fit tilts the block %.1f deg from %s",
+                      drift.gps_fit_tilt_deg, levelled_by);
       } else {
         std::snprintf(text, sizeof text,
-                      "no significant trend in time of the GPS residuals; the GPS fit tilts the block %.1f deg",
-                      drift.gps_fit_tilt_deg);
+                      "no significant trend in time of the GPS residuals; the GPS fit tilts the block %.1f deg "
+                      "from %s",
+                      drift.gps_fit_tilt_deg, levelled_by);
       }
       drift.note = text;
     } else {
       drift.note = "not tested: the levelled fit failed";
+    }
+    if (drift.vertical_source.empty()) {
+      report.findings.push_back(Finding::Warning(
+          "VERTICAL_FROM_GPS_ONLY",
+          "the block's tilt rests on the GPS heights alone (" + vertical_note +
+              "): a drift or error in them tilts the survey and nothing here can see it; add control points, or "
+              "photos with gimbal angles"));
     }
     if (fit->num_inliers < static_cast<int>(from.size())) {
       std::vector<std::string> names;
@@ -1203,7 +1226,18 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     bundle.gps_drift_axes = drift.axes;
     bundle.initial_gps_drift_m_per_s = initial_drift_rates;
   }
-  if (drift.nadir_prior) bundle.nadir_prior_sigma_deg = drift.nadir_prior_sigma_deg;
+  if (drift.attitude_prior) {
+    bundle.attitude_prior_sigma_deg = drift.attitude_prior_sigma_deg;
+    bundle.attitude_prior_down_in_camera.clear();
+    if (drift.vertical_source == "gimbal") {
+      // Each photo's own vertical; photos without gimbal angles go without.
+      bundle.attitude_prior_down_in_camera.assign(model->images.size(), Eigen::Vector3d::Zero());
+      for (size_t i = 0; i < model->images.size(); ++i) {
+        const auto it = options.gimbal.find(model->images[i].name);
+        if (it != options.gimbal.end()) bundle.attitude_prior_down_in_camera[i] = DownInCamera(it->second);
+      }
+    }
+  }
 
   // 4. Bundle adjustment with priors.
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
@@ -1326,17 +1360,19 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     report.findings.push_back(Finding::Warning(
         "GPS_DRIFT",
         "the GPS positions drift in time (" + text + "): estimated in the adjustment as a GNSS drift per flight" +
-            (drift.nadir_prior ? std::string("; the block's tilt held by the photos' nadir attitude (the GPS "
-                                             "alone would tilt it ") +
+            (drift.attitude_prior ? std::string("; the block's tilt held by the photos' ") +
+                                        (drift.vertical_source == "gimbal" ? "gimbal pitches" : "nadir attitude") +
+                                        " (the GPS alone would tilt it " +
                                      FormatDegrees(drift.gps_fit_tilt_deg) + "); without control the heights carry "
                                      "the GPS's mean error"
                                : std::string("; the control holds the datum"))));
-  } else if (drift.nadir_prior) {
+  } else if (drift.attitude_prior) {
+    const bool gimbal = drift.vertical_source == "gimbal";
     report.findings.push_back(Finding::Warning(
         "GPS_TILT_REJECTED",
-        "the GPS heights would tilt this nadir block by " + FormatDegrees(drift.gps_fit_tilt_deg) +
-            " without any trend in time; the block is levelled by the photos' nadir attitude instead: check the "
-            "GPS altitudes"));
+        std::string("the GPS heights would tilt this ") + (gimbal ? "oblique" : "nadir") + " block by " +
+            FormatDegrees(drift.gps_fit_tilt_deg) + " without any trend in time; the block is levelled by the photos' " +
+            (gimbal ? "gimbal pitches" : "nadir attitude") + " instead: check the GPS altitudes"));
   }
   report.tilt = MeasureTilt(*model);
   if (report.viewing.nadir && report.tilt.mean_axis_tilt_deg > 10.0) {

@@ -79,6 +79,11 @@ struct GeoreferenceOptions {
   // (GeoreferenceReport::control_precision); by default the estimate is used.
   bool keep_stated_control_sigmas = false;
   GpsOffsetPolicy gps_offset = GpsOffsetPolicy::kAuto;
+  // Gimbal angles by image name (DJI XMP): where the block is not nadir,
+  // their pitches give its vertical (MeasureGimbalVertical), so that GPS
+  // heights drifting in time cannot tilt an oblique block either. Not used
+  // in a LOCAL frame.
+  std::map<std::string, GimbalAttitude> gimbal;
   QualityGates gates;
   // true: every intrinsic is refined where the block determines it: a focal
   // length whose a-priori sigma exceeds weak_focal_rel of its value (the
@@ -175,16 +180,22 @@ struct GpsVersusControl {
 };
 
 // The GNSS drift analysis (gnss_drift.h): whether the GPS errors trend in
-// time, what the adjustment estimated, and whether the nadir attitude prior
-// held the block's tilt.
+// time, what the adjustment estimated, and whether an attitude prior (the
+// nadir photos' optical axes, or an oblique block's gimbal pitches) held the
+// block's tilt.
 struct GpsDriftReport {
   bool tested = false;
   std::string note;               // what was tested, or why not
   double gps_fit_tilt_deg = 0.0;  // the block's tilt had the GPS alone placed it (full similarity)
   bool estimated = false;         // the drift model entered the adjustment
   std::array<bool, 3> axes = {false, false, false};  // E, N, U estimated
-  bool nadir_prior = false;       // the attitude prior held the tilt
-  double nadir_prior_sigma_deg = 0.0;
+  bool attitude_prior = false;    // the attitude prior held the tilt
+  double attitude_prior_sigma_deg = 0.0;
+  // The vertical the block was levelled by (and the prior's): "nadir" (the
+  // mean optical axis of nadir photos) or "gimbal" (the photos' gimbal
+  // pitches, GimbalVertical); empty: none found (a block neither nadir nor
+  // with gimbal angles: the GPS alone sets its tilt).
+  std::string vertical_source;
   struct Flight {
     int images = 0;
     double duration_s = 0.0;
@@ -230,6 +241,7 @@ struct GeoreferenceReport {
   // The block's viewing geometry in its own frame (before the similarity),
   // and its cameras' tilt from nadir after the adjustment.
   ViewingGeometry viewing;
+  GimbalVertical gimbal_vertical;  // measured when the block is not nadir and has gimbal angles
   TiltStats tilt;
   // The adjusted attitudes against the photos' gimbal angles (when the
   // caller had them: AdjustSurvey); images == 0 when none.

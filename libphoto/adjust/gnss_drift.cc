@@ -5,6 +5,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
 
@@ -164,18 +165,55 @@ Eigen::Vector3d GimbalAxis(const GimbalAttitude& a) {
   return {std::cos(p) * std::sin(y), std::cos(p) * std::cos(y), std::sin(p)};
 }
 
+Eigen::Vector3d DownInCamera(const GimbalAttitude& a) {
+  const double p = a.pitch_deg * M_PI / 180.0;
+  return {0.0, std::cos(p), -std::sin(p)};
+}
+
+GimbalVertical MeasureGimbalVertical(const SparseModel& model, const std::map<std::string, GimbalAttitude>& gimbal) {
+  GimbalVertical v;
+  std::vector<Eigen::Vector3d> downs;
+  for (const Image& image : model.images) {
+    if (!image.registered) continue;
+    const auto it = gimbal.find(image.name);
+    if (it == gimbal.end()) continue;
+    downs.push_back(image.pose.cam_from_world.conjugate() * DownInCamera(it->second));
+  }
+  v.images = static_cast<int>(downs.size());
+  char text[200];
+  if (v.images < 6) {
+    std::snprintf(text, sizeof text, "%d registered photos with gimbal angles (6 needed)", v.images);
+    v.reason = text;
+    return v;
+  }
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& d : downs) sum += d;
+  if (sum.norm() < 1e-9) {
+    v.reason = "the gimbals' verticals point every way";
+    return v;
+  }
+  v.down_in_model = sum.normalized();
+  std::vector<double> angles;
+  for (const auto& d : downs) angles.push_back(AngleDeg(d, v.down_in_model));
+  v.spread_deg = Median(angles);
+  v.usable = v.spread_deg <= 10.0;
+  std::snprintf(text, sizeof text, "the verticals of %d photos' gimbal pitches agree within %.1f deg (median)%s",
+                v.images, v.spread_deg, v.usable ? "" : ": too far apart to say where down is (10 deg allowed)");
+  v.reason = text;
+  return v;
+}
+
 GimbalAgreement CompareWithGimbal(const SparseModel& model, const std::map<std::string, GimbalAttitude>& gimbal) {
   GimbalAgreement g;
   std::vector<double> pitch, yaw_signed;
-  Eigen::Vector3d adjusted_sum = Eigen::Vector3d::Zero(), gimbal_sum = Eigen::Vector3d::Zero();
+  Eigen::Vector3d down_sum = Eigen::Vector3d::Zero();
   const auto wrap = [](double deg) { return std::remainder(deg, 360.0); };
   for (const Image& image : model.images) {
     if (!image.registered) continue;
     const auto it = gimbal.find(image.name);
     if (it == gimbal.end()) continue;
     const GimbalAttitude adjusted = AttitudeOf(image.pose);
-    adjusted_sum += OpticalAxisInWorld(image.pose);
-    gimbal_sum += GimbalAxis(it->second);
+    down_sum += image.pose.cam_from_world.conjugate() * DownInCamera(it->second);
     const double dp = std::abs(adjusted.pitch_deg - it->second.pitch_deg);
     pitch.push_back(dp);
     if (dp > g.pitch_max_deg) {
@@ -187,9 +225,7 @@ GimbalAgreement CompareWithGimbal(const SparseModel& model, const std::map<std::
   g.images = static_cast<int>(pitch.size());
   if (pitch.empty()) return g;
   g.pitch_median_deg = Median(pitch);
-  if (adjusted_sum.norm() > 0.0 && gimbal_sum.norm() > 0.0) {
-    g.block_tilt_deg = AngleDeg(adjusted_sum.normalized(), gimbal_sum.normalized());
-  }
+  if (down_sum.norm() > 0.0) g.block_tilt_deg = AngleDeg(down_sum.normalized(), Eigen::Vector3d(0.0, 0.0, -1.0));
   g.yaw_images = static_cast<int>(yaw_signed.size());
   if (!yaw_signed.empty()) {
     // The circular mean: differences near ±180° must not average to 0.

@@ -12,7 +12,9 @@
 //  * a nadir survey's photos look down: their mean optical axis, which the
 //    tie points fix relative to the block, is the block's vertical
 //    (ViewingGeometry, FitLevelledSimilarity; in the adjustment an attitude
-//    prior per image, BundleOptions::nadir_prior_sigma_deg);
+//    prior per image, BundleOptions::attitude_prior_sigma_deg); an oblique
+//    survey's gimbal pitches say where down is in each photo
+//    (MeasureGimbalVertical), to the same end;
 //  * the GPS error then shows as a trend in capture time (FitDriftTrend),
 //    estimated in the adjustment per flight (BundleOptions::
 //    estimate_gps_drift) instead of bending the block.
@@ -94,9 +96,11 @@ struct GimbalAttitude {
 // well defined whatever the roll.
 struct GimbalAgreement {
   int images = 0;                 // registered images with gimbal angles
-  // The angle between the mean adjusted optical axis and the mean axis the
-  // gimbals state: the block's tilt against them, which each photo's own
-  // jitter (a degree or two) averages out of.
+  // The angle between straight down and the mean of the photos' verticals
+  // (DownInCamera of each gimbal pitch, turned by the adjusted attitude into
+  // ENU): the block's tilt against its gimbals, which each photo's own
+  // jitter (a degree or two) averages out of; free of the compass, so as
+  // good for oblique photos as for nadir ones.
   double block_tilt_deg = 0.0;
   double pitch_median_deg = 0.0;
   double pitch_max_deg = 0.0;
@@ -110,6 +114,28 @@ struct GimbalAgreement {
 GimbalAttitude AttitudeOf(const Pose& pose_enu);
 // The optical axis (ENU, unit) a gimbal attitude states.
 Eigen::Vector3d GimbalAxis(const GimbalAttitude& a);
+// The world's down in the frame of a camera whose gimbal states a (roll
+// zero, as a stabilised gimbal holds it): (0, cos p, −sin p) for pitch p,
+// (0, 0, 1) looking straight down. Independent of the yaw, so of a
+// compass's bias: what the pitch alone says about the camera's vertical.
+Eigen::Vector3d DownInCamera(const GimbalAttitude& a);
+
+// The vertical of a block, in its own frame, from its gimbal pitches: each
+// photo's DownInCamera turned into the model frame, averaged. Usable where 6
+// or more registered photos have gimbal angles and their verticals agree
+// within 10° (median angle from the mean): the tie points fix the photos'
+// attitudes relative to each other, so the verticals of a level block
+// agree to the gimbals' pitch error and roll (a degree or two), while
+// angles that do not describe the camera (a body's attitude, a gimbal
+// without stabilisation) scatter.
+struct GimbalVertical {
+  int images = 0;
+  Eigen::Vector3d down_in_model = Eigen::Vector3d::Zero();  // unit
+  double spread_deg = 0.0;
+  bool usable = false;
+  std::string reason;
+};
+GimbalVertical MeasureGimbalVertical(const SparseModel& model, const std::map<std::string, GimbalAttitude>& gimbal);
 GimbalAgreement CompareWithGimbal(const SparseModel& model_enu, const std::map<std::string, GimbalAttitude>& gimbal);
 
 // Similarity from the model frame to ENU that turns down_in_model (the mean

@@ -168,20 +168,22 @@ inline ceres::CostFunction* MakeDriftLeverArmPriorCost(const Eigen::Vector3d& pr
       prior, lever, Eigen::Vector3d(1.0 / sigma_h_m, 1.0 / sigma_h_m, 1.0 / sigma_v_m), dt_s});
 }
 
-// Nadir attitude prior on a rotation block (cam_from_world, w x y z): the
-// optical axis a = Rᵀ (0, 0, 1) in the world (ENU) points down, so its
-// horizontal part is zero: r = (a_E, a_N) / σ (σ in radians; |r| σ is the
-// sine of the tilt).
-struct NadirAttitudePrior {
+// Attitude prior on a rotation block (cam_from_world, w x y z): the
+// direction d of the camera frame that should point down (a nadir photo's
+// optical axis (0, 0, 1), an oblique one's gimbal vertical) is, in the
+// world (ENU), g = Rᵀ d; down means its horizontal part is zero:
+// r = (g_E, g_N) / σ (σ in radians; |r| σ is the sine of the tilt).
+struct AttitudePrior {
+  Eigen::Vector3d down_in_camera;
   double inv_sigma;
   template <typename T>
   bool operator()(const T* q, T* r) const {
     const T conj[4] = {q[0], -q[1], -q[2], -q[3]};
-    const T z[3] = {T(0.0), T(0.0), T(1.0)};
-    T axis[3];
-    ceres::UnitQuaternionRotatePoint(conj, z, axis);
-    r[0] = axis[0] * T(inv_sigma);
-    r[1] = axis[1] * T(inv_sigma);
+    const T d[3] = {T(down_in_camera.x()), T(down_in_camera.y()), T(down_in_camera.z())};
+    T g[3];
+    ceres::UnitQuaternionRotatePoint(conj, d, g);
+    r[0] = g[0] * T(inv_sigma);
+    r[1] = g[1] * T(inv_sigma);
     return true;
   }
 };

@@ -58,6 +58,7 @@ GeoreferenceReport AdjustSurvey(SparseModel* model, const SurveyAdjustmentInputs
     for (const Image& image : model->images) full_from_model[image.camera] = FullFromModel(inputs, image.name);
     ApplyCameraFile(ReadCameraFile(inputs.camera_file), model, &options.bundle, full_from_model);
   }
+  if (options.gimbal.empty()) options.gimbal = inputs.gimbal;  // an oblique block's vertical
   GeoreferenceReport report = GeoreferenceAndAdjust(model, inputs.gps, control ? &*control : nullptr,
                                                     checks ? &*checks : nullptr, options);
   if (!inputs.gimbal.empty() && !(report.output_crs && report.output_crs->IsLocal())) {

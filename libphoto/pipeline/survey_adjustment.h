@@ -33,7 +33,8 @@ struct SurveyAdjustmentInputs {
   // among the report's findings.
   std::vector<std::string> input_warnings;
   // Gimbal angles by image name (DJI XMP), to check the adjusted attitudes
-  // against: GeoreferenceReport::gimbal, GIMBAL_ATTITUDE_DISAGREES.
+  // against (GeoreferenceReport::gimbal, GIMBAL_ATTITUDE_DISAGREES) and to
+  // give an oblique block its vertical (GeoreferenceOptions::gimbal).
   std::map<std::string, GimbalAttitude> gimbal;
 };
 

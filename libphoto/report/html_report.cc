@@ -672,16 +672,18 @@ std::string AttitudeAndDrift(const json& r) {
     << Num(Get(att, "median_tilt_deg"), 1) << "&deg;, largest " << Num(Get(att, "max_tilt_deg"), 1) << "&deg;.</p>";
   if (att.contains("gimbal")) {
     const json& g = att["gimbal"];
-    h << "<p>Against the photos' gimbal angles (" << g.value("images", 0) << " photos): the block's mean optical axis "
-      << Num(Get(g, "block_tilt_deg"), 1) << "&deg; from theirs; per photo pitch differs by "
+    h << "<p>Against the photos' gimbal angles (" << g.value("images", 0) << " photos): the block "
+      << Num(Get(g, "block_tilt_deg"), 1) << "&deg; off the vertical their pitches state; per photo pitch differs by "
       << Num(Get(g, "pitch_difference_median_deg"), 1) << "&deg; (median), " << Num(Get(g, "pitch_difference_max_deg"), 1)
       << "&deg; at most; headings by " << Num(Get(g, "yaw_difference_median_deg"), 1)
       << "&deg; (median) after a common compass offset of " << Num(Get(g, "yaw_bias_deg"), 1) << "&deg;.</p>";
   }
   h << "<p>GNSS drift: " << Escape(Text(d, "note", "–")) << ".";
-  if (d.value("nadir_prior", false)) {
-    h << " Tilt held by a nadir attitude prior of " << Num(Get(d, "nadir_prior_sigma_deg_per_photo"), 0)
-      << "&deg; per photo.";
+  if (d.value("attitude_prior", false)) {
+    h << " Tilt held by an attitude prior ("
+      << (Text(d, "vertical_source", "") == "gimbal" ? "each photo's vertical from its gimbal pitch"
+                                                     : "the nadir photos' optical axes down")
+      << ") of " << Num(Get(d, "attitude_prior_sigma_deg_per_photo"), 0) << "&deg; per photo.";
   }
   h << "</p>";
   const json& flights = d.value("flights", json::array());

@@ -422,8 +422,9 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                       {"estimated", d.estimated},
                       {"axes", {{"e", d.axes[0]}, {"n", d.axes[1]}, {"u", d.axes[2]}}},
                       {"gps_fit_tilt_deg", d.gps_fit_tilt_deg},
-                      {"nadir_prior", d.nadir_prior},
-                      {"nadir_prior_sigma_deg_per_photo", d.nadir_prior_sigma_deg},
+                      {"vertical_source", d.vertical_source},
+                      {"attitude_prior", d.attitude_prior},
+                      {"attitude_prior_sigma_deg_per_photo", d.attitude_prior_sigma_deg},
                       {"flights", flights}};
     const ViewingGeometry& v = r.viewing;
     j["adjustment"]["attitude"] = {{"nadir_block", v.nadir},
@@ -432,6 +433,11 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                                    {"mean_axis_tilt_deg", r.tilt.mean_axis_tilt_deg},
                                    {"median_tilt_deg", r.tilt.median_deg},
                                    {"max_tilt_deg", r.tilt.max_deg}};
+    if (r.gimbal_vertical.images > 0) {
+      const GimbalVertical& gv = r.gimbal_vertical;
+      j["adjustment"]["attitude"]["gimbal_vertical"] = {
+          {"images", gv.images}, {"spread_deg", gv.spread_deg}, {"usable", gv.usable}, {"reason", gv.reason}};
+    }
     if (r.gimbal.images > 0) {
       const GimbalAgreement& g = r.gimbal;
       j["adjustment"]["attitude"]["gimbal"] = {{"images", g.images},

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "libphoto/base/error.h"
 
@@ -43,6 +44,10 @@ SyntheticSurvey MakeSyntheticSurvey(const SyntheticSurveyOptions& o) {
     throw InvalidArgument("synthetic survey: extents and height must be > 0, overlaps in "
                           "(0, 1), and the Brown camera needs 8 parameters");
   }
+  if (!(o.gimbal_pitch_deg >= -135.0 && o.gimbal_pitch_deg <= -45.0)) {
+    throw InvalidArgument("synthetic survey: gimbal pitch " + std::to_string(o.gimbal_pitch_deg) +
+                          " deg is outside [-135, -45] (-90 looks straight down; a survey camera looks at the ground)");
+  }
   std::mt19937 rng(o.seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -82,8 +87,9 @@ SyntheticSurvey MakeSyntheticSurvey(const SyntheticSurveyOptions& o) {
       ++image_id;
       image.camera = 0;
       const double heading = (s % 2 == 0 ? 0.0 : M_PI) + o.attitude_sigma_deg * deg * gauss(rng);
+      // A lean towards the image's top (−y) turns the camera about its x axis.
       image.pose.cam_from_world =
-          NadirRotation(heading, o.attitude_sigma_deg * deg * gauss(rng),
+          NadirRotation(heading, -(o.gimbal_pitch_deg + 90.0) * deg + o.attitude_sigma_deg * deg * gauss(rng),
                         o.attitude_sigma_deg * deg * gauss(rng));
       image.pose.centre_in_world =
           Eigen::Vector3d(east + 0.5 * gauss(rng), north + 0.5 * gauss(rng),
@@ -103,9 +109,12 @@ SyntheticSurvey MakeSyntheticSurvey(const SyntheticSurveyOptions& o) {
                    static_cast<std::uint8_t>(shade)};
     truth.points.push_back(point);
   };
+  // Tie points over the ground the photos see: the area, and beyond its
+  // northern and southern edges as far as the outer strips lean (oblique).
+  const double lean_m = o.flight_height_m * std::tan(std::abs(o.gimbal_pitch_deg + 90.0) * deg);
   for (int i = 0; i < o.num_tie_points; ++i) {
     add_point((uniform(rng) - 0.5) * o.area_width_m * 1.05,
-              (uniform(rng) - 0.5) * o.area_height_m * 1.05, PointRole::kTie, "");
+              (uniform(rng) - 0.5) * (o.area_height_m * 1.05 + 2.0 * lean_m), PointRole::kTie, "");
   }
   // Control on a ring around the border and the centre, check points in between
   // (how a surveyor would place them).

@@ -28,6 +28,11 @@ struct SyntheticSurveyOptions {
   double forward_overlap = 0.75;
   double side_overlap = 0.65;
   double attitude_sigma_deg = 2.0;  // random tilt and heading jitter
+  // The camera's pitch as a gimbal states it (GimbalAttitude): −90 looks
+  // straight down; −60 leans 30° towards the image's top, which points
+  // north on the first strip and south on the next (lawn-mower), so that an
+  // oblique block looks both ways.
+  double gimbal_pitch_deg = -90.0;
 
   // Camera (4000 x 3000 px, 3000 px focal length; moderate Brown distortion).
   int width = 4000;
