@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "georef/similarity.h"
+#include "libphoto/model/gimbal_attitude.h"
 #include "libphoto/model/sparse_model.h"
 
 namespace aerotri {
@@ -77,17 +78,6 @@ struct TiltStats {
 };
 TiltStats MeasureTilt(const SparseModel& model);
 
-// A camera's attitude as its gimbal reports it (DJI XMP drone-dji:
-// GimbalPitchDegree / GimbalYawDegree): pitch the elevation of the optical
-// axis (−90 straight down, 0 level, below −90 leaning back, behind the
-// image's top), yaw the heading of the image's top (degrees clockwise from
-// north). Without roll: a sideways lean is not expressed. Independent of the photos and the GPS
-// positions: what tells a tilted block from a level one on real flights.
-struct GimbalAttitude {
-  double pitch_deg = -90.0;
-  double yaw_deg = 0.0;
-};
-
 // The adjusted cameras (model in an ENU frame: x east, y north, z up)
 // against their gimbals. Pitch: |adjusted − gimbal| elevation of the optical
 // axis. Yaw: the heading of the image's top, after removing the mean
@@ -110,16 +100,6 @@ struct GimbalAgreement {
   double yaw_median_deg = 0.0;    // |difference − bias|
   double yaw_max_deg = 0.0;
 };
-// The adjusted elevation and heading of one pose (ENU), as a gimbal reports them.
-GimbalAttitude AttitudeOf(const Pose& pose_enu);
-// The optical axis (ENU, unit) a gimbal attitude states.
-Eigen::Vector3d GimbalAxis(const GimbalAttitude& a);
-// The world's down in the frame of a camera whose gimbal states a (roll
-// zero, as a stabilised gimbal holds it): (0, cos p, −sin p) for pitch p,
-// (0, 0, 1) looking straight down. Independent of the yaw, so of a
-// compass's bias: what the pitch alone says about the camera's vertical.
-Eigen::Vector3d DownInCamera(const GimbalAttitude& a);
-
 // The vertical of a block, in its own frame, from its gimbal pitches: each
 // photo's DownInCamera turned into the model frame, averaged. Usable where 6
 // or more registered photos have gimbal angles and their verticals agree
