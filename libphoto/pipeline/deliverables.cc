@@ -347,7 +347,7 @@ json FootprintCoverage(const SparseModel& model, const Raster& dsm, const GeoFra
     const Eigen::Vector3d c = image.pose.centre_in_world;
     double radius = 0.0;
     bool ok = true;
-    for (const Eigen::Vector2d corner : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(cam.width - 0.5, -0.5),
+    for (const Eigen::Vector2d& corner : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(cam.width - 0.5, -0.5),
                                          Eigen::Vector2d(-0.5, cam.height - 0.5),
                                          Eigen::Vector2d(cam.width - 0.5, cam.height - 0.5)}) {
       const auto ray = cam.RayFromImage(corner);
