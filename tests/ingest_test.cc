@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 
 #include "camera_models/exif_intrinsics.h"
 #include "libphoto/base/error.h"
@@ -46,6 +47,32 @@ TEST(ImageMetadata, ExifGpsAndOpticsRoundTripThroughGdal) {
 
   std::ofstream(dir / "broken.jpg") << "not an image";
   EXPECT_THROW(ReadImageMetadata(dir / "broken.jpg"), IoError);
+}
+
+// DJI gimbal angles written as an XMP segment beside the EXIF one, read back
+// by GDAL's JPEG driver (which parses the segment itself): the angles to
+// their two written decimals, the EXIF untouched, the pixels decodable.
+TEST(ImageMetadata, GimbalXmpRoundTripsBesideTheExif) {
+  testing::TempDir dir;
+  cv::Mat image(48, 64, CV_8UC3, cv::Scalar(40, 120, 200));
+  WriteJpegWithExif(dir / "g.jpg", image, {{"EXIF_Make", "DJI"}, {"EXIF_GPSAltitude", "(98.5)"}}, 90,
+                    DjiGimbalXmp(-59.876, 171.234, 1.5));
+  const ImageMetadata m = ReadImageMetadata(dir / "g.jpg");
+  EXPECT_EQ(m.make, "DJI");
+  ASSERT_TRUE(m.gps_altitude_m.has_value());
+  EXPECT_NEAR(*m.gps_altitude_m, 98.5, 1e-9);
+  ASSERT_TRUE(m.gimbal_pitch_deg && m.gimbal_yaw_deg && m.gimbal_roll_deg);
+  EXPECT_NEAR(*m.gimbal_pitch_deg, -59.88, 1e-9);
+  EXPECT_NEAR(*m.gimbal_yaw_deg, 171.23, 1e-9);
+  EXPECT_NEAR(*m.gimbal_roll_deg, 1.5, 1e-9);
+  const cv::Mat back = cv::imread((dir / "g.jpg").string());
+  ASSERT_EQ(back.cols, 64);
+  EXPECT_NEAR(back.at<cv::Vec3b>(10, 10)[2], 200, 3);
+  // Without a packet there is no XMP.
+  WriteJpegWithExif(dir / "plain.jpg", image, {{"EXIF_Make", "DJI"}});
+  EXPECT_FALSE(ReadImageMetadata(dir / "plain.jpg").gimbal_pitch_deg.has_value());
+  EXPECT_THROW(WriteJpegWithExif(dir / "big.jpg", image, {}, 90, std::string(70000, 'x')), InvalidArgument);
+  EXPECT_FALSE(std::filesystem::exists(dir / "big.jpg"));
 }
 
 // Found by tests/fuzz/fuzz_exif.cc: an EXIF_PixelXDimension of 1e12 was

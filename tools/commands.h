@@ -120,6 +120,8 @@ struct SimulateArgs {
   double gps_sigma_h_m = 2.0;
   double gps_sigma_v_m = 4.0;
   double gps_drift_v_m = 0.0;
+  double gimbal_pitch_deg = -90.0;
+  bool gimbal_xmp = false;
   int control = 8;
   int checks = 6;
   double gcp_noise_m = 0.01;

@@ -36,6 +36,14 @@ void RegisterSimulateCommand(CLI::App& app, CommandAction* run) {
                   "GPS altitude drift over the flight (metres, linear in time from the first photo: a consumer "
                   "drone's barometric drift)")
       ->capture_default_str();
+  cmd->add_option("--gimbal-pitch", a->gimbal_pitch_deg,
+                  "Camera pitch (degrees; -90 looks straight down, -60 leans 30 degrees towards the image's top, "
+                  "north and south strip by strip)")
+      ->check(CLI::Range(-135.0, -45.0))
+      ->capture_default_str();
+  cmd->add_flag("--gimbal-xmp", a->gimbal_xmp,
+                "Write DJI XMP gimbal angles (drone-dji:GimbalPitchDegree, ...) into each photo: the true attitude "
+                "with 0.5 degrees of noise");
   cmd->add_option("--control", a->control, "Number of ground control points")->check(CLI::Range(0, 100))->capture_default_str();
   cmd->add_option("--checks", a->checks, "Number of check points")->check(CLI::Range(0, 100))->capture_default_str();
   cmd->add_option("--gcp-noise", a->gcp_noise_m, "Survey noise of control and check points (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
@@ -63,6 +71,8 @@ int RunSimulate(const SimulateArgs& a, ToolContext& ctx) {
   o.survey.forward_overlap = a.forward_overlap;
   o.survey.side_overlap = a.side_overlap;
   o.survey.relief_m = a.relief_m;
+  o.survey.gimbal_pitch_deg = a.gimbal_pitch_deg;
+  o.write_gimbal_xmp = a.gimbal_xmp;
   o.num_buildings = a.buildings;
   o.survey.num_control_points = a.control;
   o.survey.num_check_points = a.checks;

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <memory>
 
 #include "libphoto/base/atomic_file.h"
@@ -22,9 +24,55 @@ std::string ExifDms(double degrees) {
   return buf;
 }
 
+std::string DjiGimbalXmp(double pitch_deg, double yaw_deg, double roll_deg) {
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"><rdf:RDF "
+                "xmlns:rdf=\"http://www.w3.org/1999/02/22-rdf-syntax-ns#\"><rdf:Description rdf:about=\"\" "
+                "xmlns:drone-dji=\"http://www.dji.com/drone-dji/1.0/\" drone-dji:GimbalRollDegree=\"%+.2f\" "
+                "drone-dji:GimbalYawDegree=\"%+.2f\" drone-dji:GimbalPitchDegree=\"%+.2f\"/></rdf:RDF></x:xmpmeta>",
+                roll_deg, yaw_deg, pitch_deg);
+  return text;
+}
+
+namespace {
+
+// Inserts the XMP packet as an APP1 segment after the file's leading APPn
+// segments (JFIF APP0, EXIF APP1), where readers look for it.
+void InsertXmpSegment(const std::filesystem::path& file, const std::string& xmp) {
+  static const char kNamespace[] = "http://ns.adobe.com/xap/1.0/";  // and its terminating NUL
+  const size_t length = 2 + sizeof kNamespace + xmp.size();
+  if (length > 65535) throw InvalidArgument("XMP packet of " + std::to_string(xmp.size()) + " bytes: at most 65,000 fit");
+  std::string bytes;
+  {
+    std::ifstream in(file, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  auto byte = [&](size_t k) { return static_cast<unsigned char>(bytes[k]); };
+  if (bytes.size() < 4 || byte(0) != 0xFF || byte(1) != 0xD8) throw IoError(file.string(), "not a JPEG (no SOI)");
+  size_t at = 2;
+  while (at + 4 <= bytes.size() && byte(at) == 0xFF && byte(at + 1) >= 0xE0 && byte(at + 1) <= 0xEF) {
+    at += 2 + (static_cast<size_t>(byte(at + 2)) << 8 | byte(at + 3));
+  }
+  if (at > bytes.size()) throw IoError(file.string(), "truncated APP segment");
+  std::string segment = {'\xFF', '\xE1', static_cast<char>(length >> 8), static_cast<char>(length & 0xFF)};
+  segment.append(kNamespace, sizeof kNamespace);
+  segment += xmp;
+  bytes.insert(at, segment);
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (!out) throw IoError(file.string(), "cannot write the XMP segment");
+}
+
+}  // namespace
+
 void WriteJpegWithExif(const std::filesystem::path& path, const cv::Mat& image,
-                       const std::map<std::string, std::string>& exif, int quality) {
+                       const std::map<std::string, std::string>& exif, int quality, const std::string& xmp) {
   GDALAllRegister();
+  if (xmp.size() > 65000) {
+    throw InvalidArgument("XMP packet of " + std::to_string(xmp.size()) + " bytes for " + path.string() +
+                          ": at most 65,000 fit in a JPEG segment");
+  }
   if (image.empty() || image.depth() != CV_8U || (image.channels() != 3 && image.channels() != 1)) {
     throw InvalidArgument("JPEG output needs an 8-bit grey or BGR image");
   }
@@ -62,6 +110,14 @@ void WriteJpegWithExif(const std::filesystem::path& path, const cv::Mat& image,
   out.reset();
   std::error_code ec;
   std::filesystem::remove(tmp.string() + ".aux.xml", ec);
+  if (!xmp.empty()) {
+    try {
+      InsertXmpSegment(tmp, xmp);
+    } catch (...) {
+      std::filesystem::remove(tmp, ec);
+      throw;
+    }
+  }
   CommitTemporaryFile(tmp, path);
 }
 

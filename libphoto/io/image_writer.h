@@ -14,8 +14,17 @@ namespace aerotri {
 
 // image: 8-bit BGR (OpenCV order) or grey. exif: GDAL item names
 // ("EXIF_GPSLatitude" = "(46) (30) (12.5)", ...). quality in [1, 100].
+// xmp: an XMP packet (<x:xmpmeta ...>...</x:xmpmeta>) written as the
+// standard APP1 segment after the EXIF one (GDAL's JPEG driver writes none;
+// it reads it back into the xml:XMP domain); empty: none. At most 65,000
+// bytes.
 void WriteJpegWithExif(const std::filesystem::path& path, const cv::Mat& image,
-                       const std::map<std::string, std::string>& exif, int quality = 90);
+                       const std::map<std::string, std::string>& exif, int quality = 90,
+                       const std::string& xmp = "");
+
+// An XMP packet with a DJI drone's gimbal angles (drone-dji:GimbalPitchDegree,
+// GimbalYawDegree, GimbalRollDegree; degrees), as DJI cameras write them.
+std::string DjiGimbalXmp(double pitch_deg, double yaw_deg, double roll_deg);
 
 // EXIF rational triple for degrees: "(46) (30) (12.3456)".
 std::string ExifDms(double degrees);

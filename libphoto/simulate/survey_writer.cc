@@ -18,6 +18,7 @@
 #include "libphoto/export/raster.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/io/image_writer.h"
+#include "libphoto/model/gimbal_attitude.h"
 #include "libphoto/simulate/render.h"
 
 namespace aerotri {
@@ -338,7 +339,16 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
     exif["EXIF_PixelYDimension"] = std::to_string(camera.height);
     exif["EXIF_FocalLengthIn35mmFilm"] =
         std::to_string(static_cast<int>(std::lround(focal_mm * 36.0 / options.sensor_width_mm)));
-    WriteJpegWithExif(path, pixels, exif, options.jpeg_quality);
+    std::string xmp;
+    if (options.write_gimbal_xmp) {
+      // Per image, so that a resumed simulation writes the same angles.
+      std::mt19937 gimbal_rng(options.survey.seed * 7919u + static_cast<std::uint32_t>(i));
+      std::normal_distribution<double> noise(0.0, options.gimbal_noise_deg);
+      const GimbalAttitude a = AttitudeOf(image.pose);
+      const double pitch = a.pitch_deg + noise(gimbal_rng), yaw = a.yaw_deg + noise(gimbal_rng);
+      xmp = DjiGimbalXmp(pitch, std::remainder(yaw, 360.0), GimbalRollOf(image.pose) + noise(gimbal_rng));
+    }
+    WriteJpegWithExif(path, pixels, exif, options.jpeg_quality, xmp);
   }
   ReportProgress(options.progress, 1.0, "simulated " + std::to_string(truth.images.size()) + " images");
 }

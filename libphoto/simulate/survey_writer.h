@@ -45,6 +45,11 @@ struct SimulationOptions {
   // terrain, truth/dsm.tif adds the roofs, truth.json lists them.
   int num_buildings = 0;
   double sensor_width_mm = 6.4;  // for EXIF focal length in mm
+  // DJI XMP gimbal angles in each JPEG (drone-dji:GimbalPitchDegree,
+  // GimbalYawDegree, GimbalRollDegree): the true attitude with Gaussian
+  // noise of gimbal_noise_deg on each angle.
+  bool write_gimbal_xmp = false;
+  double gimbal_noise_deg = 0.5;
   ProgressCallback progress;
 };
 
