@@ -214,8 +214,9 @@ struct SyntheticMatches {
   std::vector<PairMatches> matches;
 };
 
-SyntheticMatches MakeMatches(std::uint32_t seed, double pixel_noise_px) {
+SyntheticMatches MakeMatches(std::uint32_t seed, double pixel_noise_px, double gimbal_pitch_deg = -90.0) {
   SyntheticSurveyOptions o;
+  o.gimbal_pitch_deg = gimbal_pitch_deg;
   o.seed = seed;
   o.width = 1600;
   o.height = 1200;
@@ -332,6 +333,50 @@ TEST(IncrementalMapper, AnImageWithoutMatchesIsLeftOutAndSaysWhy) {
   EXPECT_EQ(registered, static_cast<int>(s.names.size()) - 1);
 }
 
+// A false registration staged on a block: image X carries the features and
+// matches of the image Y farthest from it, while its GPS (2 m / 4 m noise)
+// says where it was.
+struct FalseRegistration {
+  int x = 0, y = 0;
+  double apart_m = 0.0;
+  std::vector<std::optional<Eigen::Vector3d>> gps;
+  std::vector<ImageFeatures> features;
+  std::vector<PairMatches> matches;
+};
+
+FalseRegistration StageFalseRegistration(const SyntheticMatches& s, std::uint32_t seed) {
+  FalseRegistration f;
+  const int n = static_cast<int>(s.names.size());
+  f.gps.resize(n);
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 2.0);
+  for (int i = 0; i < n; ++i) {
+    f.gps[i] = s.truth.images[i].pose.centre_in_world + Eigen::Vector3d(noise(rng), noise(rng), 2.0 * noise(rng));
+  }
+  f.x = n / 2;
+  auto centre = [&](int i) { return s.truth.images[i].pose.centre_in_world; };
+  for (int i = 0; i < n; ++i) {
+    if ((centre(i) - centre(f.x)).norm() > (centre(f.y) - centre(f.x)).norm()) f.y = i;
+  }
+  f.apart_m = (centre(f.y) - centre(f.x)).norm();
+  f.features = s.features;
+  f.features[f.x] = s.features[f.y];
+  for (const PairMatches& m : s.matches) {
+    if (m.i == f.x || m.j == f.x) continue;
+    f.matches.push_back(m);
+    if (m.i != f.y && m.j != f.y) continue;
+    PairMatches copy = m;  // Y's pair, as X's
+    if (copy.i == f.y) copy.i = f.x;
+    if (copy.j == f.y) copy.j = f.x;
+    if (copy.i > copy.j) {
+      std::swap(copy.i, copy.j);
+      for (auto& in : copy.inliers) std::swap(in[0], in[1]);
+    }
+    f.matches.push_back(copy);
+  }
+  return f;
+}
+
 // A false registration on repetitive texture, caught when it happens: one
 // image (X) carries another's features and matches (Y's, 2 strips away), so
 // PnP places it where Y is, while its GPS says where it was. The check
@@ -342,40 +387,13 @@ TEST(IncrementalMapper, AnImageWithoutMatchesIsLeftOutAndSaysWhy) {
 TEST(IncrementalMapper, AFalseRegistrationIsCaughtByTheGpsWhenItHappens) {
   SyntheticMatches s = MakeMatches(9, 0.3);
   const int n = static_cast<int>(s.names.size());
-  std::vector<std::optional<Eigen::Vector3d>> gps(n);
-  std::mt19937 rng(9);
-  std::normal_distribution<double> noise(0.0, 2.0);
-  for (int i = 0; i < n; ++i) {
-    gps[i] = s.truth.images[i].pose.centre_in_world + Eigen::Vector3d(noise(rng), noise(rng), 2.0 * noise(rng));
-  }
-  // X and the image Y farthest from it.
-  const int x = n / 2;
-  int y = 0;
-  for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3d c = s.truth.images[i].pose.centre_in_world;
-    if ((c - s.truth.images[x].pose.centre_in_world).norm() >
-        (s.truth.images[y].pose.centre_in_world - s.truth.images[x].pose.centre_in_world).norm()) {
-      y = i;
-    }
-  }
-  const double apart = (s.truth.images[y].pose.centre_in_world - s.truth.images[x].pose.centre_in_world).norm();
+  const FalseRegistration staged = StageFalseRegistration(s, 9);
+  const int x = staged.x, y = staged.y;
+  const double apart = staged.apart_m;
   ASSERT_GT(apart, 60.0);
-  std::vector<ImageFeatures> features = s.features;
-  features[x] = s.features[y];
-  std::vector<PairMatches> matches;
-  for (const PairMatches& m : s.matches) {
-    if (m.i == x || m.j == x) continue;
-    matches.push_back(m);
-    if (m.i != y && m.j != y) continue;
-    PairMatches copy = m;  // Y's pair, as X's
-    if (copy.i == y) copy.i = x;
-    if (copy.j == y) copy.j = x;
-    if (copy.i > copy.j) {
-      std::swap(copy.i, copy.j);
-      for (auto& in : copy.inliers) std::swap(in[0], in[1]);
-    }
-    matches.push_back(copy);
-  }
+  const std::vector<std::optional<Eigen::Vector3d>>& gps = staged.gps;
+  const std::vector<ImageFeatures>& features = staged.features;
+  const std::vector<PairMatches>& matches = staged.matches;
   Camera start = Camera::Create(CameraModelId::kBrown, 1200.0, 1600, 1200);
   MapperOptions options;
   options.num_threads = 2;
@@ -403,6 +421,43 @@ TEST(IncrementalMapper, AFalseRegistrationIsCaughtByTheGpsWhenItHappens) {
                                                 blundered);
   EXPECT_TRUE(b.gps_deregistered.empty());
   for (int i = 0; i < n; ++i) EXPECT_TRUE(b.images[i].registered) << s.names[i] << ": " << b.images[i].why_not;
+}
+
+// The same false registration in an oblique block (cameras 30 degrees off
+// nadir, north and south strip by strip): its optical axes give no
+// vertical, so without gimbal angles the check cannot level the model and X
+// stays; with the photos' gimbal pitches (0.5 degrees of noise) X is caught
+// and named, and every other image stays.
+TEST(IncrementalMapper, AFalseRegistrationInAnObliqueBlockIsCaughtThroughItsGimbals) {
+  const SyntheticMatches s = MakeMatches(12, 0.3, -60.0);
+  const int n = static_cast<int>(s.names.size());
+  const FalseRegistration staged = StageFalseRegistration(s, 12);
+  ASSERT_GT(staged.apart_m, 60.0);
+  std::map<std::string, GimbalAttitude> gimbal;
+  std::mt19937 rng(12);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  for (const Image& image : s.truth.images) {
+    GimbalAttitude a = AttitudeOf(image.pose);
+    a.pitch_deg += noise(rng);
+    a.yaw_deg += noise(rng);
+    gimbal[image.name] = a;
+  }
+  Camera start = Camera::Create(CameraModelId::kBrown, 1200.0, 1600, 1200);
+  MapperOptions options;
+  options.num_threads = 2;
+  options.gps_rescue = false;
+  const std::vector<int> camera_of_image(n, 0);
+  const MapperResult blind =
+      ReconstructIncremental(s.names, camera_of_image, {start}, staged.features, staged.matches, options, staged.gps);
+  EXPECT_TRUE(blind.images[staged.x].registered) << "an oblique block without gimbals has no vertical to check by";
+  const MapperResult r = ReconstructIncremental(s.names, camera_of_image, {start}, staged.features, staged.matches,
+                                                options, staged.gps, gimbal);
+  EXPECT_FALSE(r.images[staged.x].registered);
+  EXPECT_NE(r.images[staged.x].why_not.find("m from its GPS position"), std::string::npos) << r.images[staged.x].why_not;
+  EXPECT_EQ(r.gps_deregistered, std::vector<std::string>{s.names[staged.x]});
+  for (int i = 0; i < n; ++i) {
+    if (i != staged.x) EXPECT_TRUE(r.images[i].registered) << s.names[i] << ": " << r.images[i].why_not;
+  }
 }
 
 // A block whose two halves share no tie point (a field bare of texture

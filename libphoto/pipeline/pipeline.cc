@@ -199,8 +199,9 @@ bool RunReconstructStage(const PipelineOptions& o) {
       if (ingest.gps[i]) gps[i] = frame.EnuFromGeodetic(ingest.gps[i]->position);
     }
   }
+  // Gimbal pitches give an oblique block the vertical its GPS check levels by.
   MapperResult result = ReconstructIncremental(ingest.names, camera_of_image, ingest.cameras, features,
-                                               matches, mo, gps);
+                                               matches, mo, gps, ingest.GimbalAngles());
   // Registered images only in the COLMAP model.
   SparseModel registered;
   registered.cameras = result.model.cameras;
@@ -285,11 +286,8 @@ SurveyAdjustmentInputs GeoreferenceInputs(const PipelineOptions& o, const Ingest
   for (size_t i = 0; i < ingest.names.size(); ++i) {
     if (ingest.gps[i]) inputs.gps[ingest.names[i]] = *ingest.gps[i];
     inputs.full_from_model[ingest.names[i]] = ingest.scale[i];
-    const IngestedImage& im = ingest.record.images[i];
-    if (im.gimbal_pitch_deg && im.gimbal_yaw_deg) {
-      inputs.gimbal[im.name] = {*im.gimbal_pitch_deg, *im.gimbal_yaw_deg};
-    }
   }
+  inputs.gimbal = ingest.GimbalAngles();
   inputs.gcp = o.gcp;
   inputs.checkpoints = o.checkpoints;
   inputs.gcp_pixel_origin = o.gcp_pixel_origin;

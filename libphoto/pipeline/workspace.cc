@@ -85,6 +85,14 @@ std::filesystem::path IngestView::ImagesDir(const PipelineOptions& o) const {
   return record.images_dir.empty() ? o.images_dir : record.images_dir;
 }
 
+std::map<std::string, GimbalAttitude> IngestView::GimbalAngles() const {
+  std::map<std::string, GimbalAttitude> gimbal;
+  for (const IngestedImage& im : record.images) {
+    if (im.gimbal_pitch_deg && im.gimbal_yaw_deg) gimbal[im.name] = {*im.gimbal_pitch_deg, *im.gimbal_yaw_deg};
+  }
+  return gimbal;
+}
+
 std::optional<Geodetic> IngestView::EnuOrigin() const {
   Geodetic mean{0.0, 0.0, 0.0};
   int n = 0;

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -129,6 +130,9 @@ struct IngestView {
   // The workspace's one ENU origin: the mean GPS position of the usable
   // images (what match, reconstruct and georeference work in); none without GPS.
   std::optional<Geodetic> EnuOrigin() const;
+  // The photos' gimbal angles (DJI XMP) by image name, where they have both
+  // pitch and yaw.
+  std::map<std::string, GimbalAttitude> GimbalAngles() const;
 };
 
 // The ingest stage's options, from the pipeline's.

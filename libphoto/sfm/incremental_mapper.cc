@@ -46,8 +46,9 @@ class Mapper {
   Mapper(const std::vector<std::string>& names, const std::vector<int>& camera_of_image,
          const std::vector<Camera>& cameras, const std::vector<ImageFeatures>& features,
          const std::vector<PairMatches>& matches, const MapperOptions& options,
-         const std::vector<std::optional<Eigen::Vector3d>>& gps_enu)
-      : features_(features), matches_(matches), options_(options), gps_(gps_enu) {
+         const std::vector<std::optional<Eigen::Vector3d>>& gps_enu,
+         const std::map<std::string, GimbalAttitude>& gimbal = {})
+      : features_(features), matches_(matches), options_(options), gps_(gps_enu), gimbal_(gimbal) {
     gps_.resize(names.size());
     model_.cameras = cameras;
     for (size_t i = 0; i < names.size(); ++i) {
@@ -556,9 +557,17 @@ class Mapper {
       to.push_back(*gps_[i]);
     }
     if (images.size() < 6) return 0;
+    // The block's vertical: a nadir block's mean optical axis, else its
+    // gimbal pitches'; without either, no vertical to level by (yet).
     const ViewingGeometry view = MeasureViewingGeometry(model_);
-    if (!view.nadir) return 0;  // no vertical to level by (yet)
-    const auto fit = FitLevelledSimilarity(from, to, view.mean_axis, options_.gps_check_m);
+    Eigen::Vector3d down = view.mean_axis;
+    if (!view.nadir) {
+      if (gimbal_.empty()) return 0;
+      const GimbalVertical vertical = MeasureGimbalVertical(model_, gimbal_);
+      if (!vertical.usable) return 0;
+      down = vertical.down_in_model;
+    }
+    const auto fit = FitLevelledSimilarity(from, to, down, options_.gps_check_m);
     if (!fit || 2 * fit->num_inliers <= static_cast<int>(images.size())) return 0;  // the GPS as a whole disagrees
     const double limit = std::max(options_.gps_check_m, 5.0 * fit->rms_m);
     int removed = 0;
@@ -640,6 +649,7 @@ class Mapper {
   std::vector<int> gps_strikes_;  // de-registrations against the GPS, per image
   std::map<int, bool> has_pair_;
   std::vector<std::optional<Eigen::Vector3d>> gps_;
+  std::map<std::string, GimbalAttitude> gimbal_;  // by image name
   int adjustments_ = 0;
 };
 
@@ -783,9 +793,10 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
                                     const std::vector<ImageFeatures>& features,
                                     const std::vector<PairMatches>& matches,
                                     const MapperOptions& options,
-                                    const std::vector<std::optional<Eigen::Vector3d>>& gps_enu) {
+                                    const std::vector<std::optional<Eigen::Vector3d>>& gps_enu,
+                                    const std::map<std::string, GimbalAttitude>& gimbal) {
   AEROTRI_CHECK(names.size() == camera_of_image.size() && names.size() == features.size());
-  Mapper mapper(names, camera_of_image, cameras, features, matches, options, gps_enu);
+  Mapper mapper(names, camera_of_image, cameras, features, matches, options, gps_enu, gimbal);
   MapperResult result = mapper.Run();
   result.component.assign(names.size(), -1);
   int main_images = 0;

@@ -33,8 +33,9 @@
 // Registrations are checked against the GPS as the model grows (after each
 // global adjustment), so that a false registration on repetitive fields is
 // caught when it happens: once the block is a nadir survey spanning a plane,
-// the model is levelled by its mean optical axis and fitted to the GPS
-// horizontally (a drifting GPS altitude cannot tilt that fit); an image
+// the model is levelled by its mean optical axis (an oblique block by its
+// photos' gimbal pitches, where given: MeasureGimbalVertical) and fitted to
+// the GPS horizontally (a drifting GPS altitude cannot tilt that fit); an image
 // lying more than gps_check_m from its GPS position, whose GPS position
 // agrees with its capture-order neighbours' (so the fix is not the one in
 // error), is de-registered and named. It may come back only through guided
@@ -43,6 +44,7 @@
 // its neighbours' is the GPS's error: the image stays, and georeferencing
 // judges the fix.
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -50,6 +52,7 @@
 #include "libphoto/base/progress.h"
 #include "libphoto/features/features.h"
 #include "libphoto/matching/matching.h"
+#include "libphoto/model/gimbal_attitude.h"
 #include "libphoto/model/sparse_model.h"
 
 namespace aerotri {
@@ -113,6 +116,7 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
                                     const std::vector<ImageFeatures>& features,
                                     const std::vector<PairMatches>& matches,
                                     const MapperOptions& options,
-                                    const std::vector<std::optional<Eigen::Vector3d>>& gps_enu = {});
+                                    const std::vector<std::optional<Eigen::Vector3d>>& gps_enu = {},
+                                    const std::map<std::string, GimbalAttitude>& gimbal = {});
 
 }  // namespace aerotri
