@@ -1306,10 +1306,20 @@ TEST(Georeferencing, ObliqueBlockWithDriftingGpsIsLevelledByItsGimbals) {
   EXPECT_FALSE(without.gps_drift.attitude_prior);
   EXPECT_GT(worst_attitude_deg(blind), 10.0);
   const Finding* note = nullptr;
+  const Finding* error = nullptr;
   for (const Finding& finding : without.findings) {
     if (finding.code == "VERTICAL_FROM_GPS_ONLY") note = &finding;
+    if (finding.code == "GROUND_TILTED_BY_GPS") error = &finding;
   }
   ASSERT_NE(note, nullptr);
+  // The ground (12 m of relief on a 2 % slope) comes out sloping by the tilt:
+  // an error, so the tilted survey is not delivered as if valid.
+  EXPECT_GT(without.tilt.ground_slope_deg, 20.0);
+  ASSERT_NE(error, nullptr);
+  EXPECT_EQ(error->severity, Severity::kError);
+  // Levelled by the gimbals the ground is as flat as the truth's.
+  EXPECT_LT(report.tilt.ground_slope_deg, 3.0);
+  for (const Finding& finding : report.findings) EXPECT_NE(finding.code, "GROUND_TILTED_BY_GPS");
 }
 
 // Control in plan only (geo_z 'nan'): its height is the adjustment's; the

@@ -71,6 +71,7 @@ std::vector<View> ViewsOf(const SparseModel& model, int point_index) {
 }
 
 constexpr double kAttitudePriorSigmaDeg = 5.0;  // per photo (GpsDriftReport)
+constexpr double kGpsOnlyGroundSlopeDeg = 20.0;  // GROUND_TILTED_BY_GPS
 constexpr double kNoHeightSigmaM = 1e4;      // the vertical prior of a control point in plan only
 
 std::string FormatDegrees(double deg) {
@@ -1381,6 +1382,19 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
         "the adjusted block of nadir photos looks " + FormatDegrees(report.tilt.mean_axis_tilt_deg) +
             " off vertical (mean optical axis; median photo " + FormatDegrees(report.tilt.median_deg) +
             "): the datum is tilted. GPS heights drifting or wrong, or control in a wrong CRS?"));
+  }
+  // Nothing but the GPS heights set the block's tilt (no nadir axis, no
+  // gimbal, no control): a ground that slopes more than 20° over the whole
+  // block is what a drifting GPS altitude makes of a level one.
+  if (!control_datum && drift.vertical_source.empty() && !local &&
+      report.tilt.ground_slope_deg > kGpsOnlyGroundSlopeDeg) {
+    report.findings.push_back(Finding::Error(
+        "GROUND_TILTED_BY_GPS",
+        "the adjusted ground slopes " + FormatDegrees(report.tilt.ground_slope_deg) + " across the whole block (plane "
+            "through " + std::to_string(report.tilt.ground_points) + " tie points) and only the GPS heights set the "
+            "block's tilt (" + report.viewing.reason + ", no gimbal angles, no control): a drifting or wrong GPS "
+            "altitude tilts a survey this way. Add control points or photos with gimbal angles, or run with "
+            "--keep-going if the ground truly slopes so"));
   }
 
   // 5. Check points from the adjusted cameras alone; residuals in the output CRS.

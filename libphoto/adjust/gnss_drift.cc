@@ -2,6 +2,7 @@
 #include "libphoto/adjust/gnss_drift.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
@@ -142,6 +143,24 @@ TiltStats MeasureTilt(const SparseModel& model) {
   t.median_deg = Median(tilts);
   t.max_deg = *std::max_element(tilts.begin(), tilts.end());
   t.mean_axis_tilt_deg = sum.norm() > 0.0 ? AngleDeg(sum.normalized(), down) : 180.0;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const Point& p : model.points) {
+    if (p.role != PointRole::kTie) continue;
+    centroid += p.position;
+    ++t.ground_points;
+  }
+  if (t.ground_points < 3) {
+    t.ground_points = 0;
+    return t;
+  }
+  centroid /= t.ground_points;
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Point& p : model.points) {
+    if (p.role == PointRole::kTie) scatter += (p.position - centroid) * (p.position - centroid).transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
+  const Eigen::Vector3d normal = eigen.eigenvectors().col(0);  // smallest spread
+  t.ground_slope_deg = std::acos(std::min(1.0, std::abs(normal.z()))) * 180.0 / M_PI;
   return t;
 }
 

@@ -70,11 +70,16 @@ ViewingGeometry MeasureViewingGeometry(const SparseModel& model);
 
 // Tilt of each registered image's optical axis from straight down (degrees),
 // in an up-is-z frame; summarised by median, mean axis and largest.
+// With the ground's mean slope: the angle from level of the plane fitted to
+// the tie points (least squares, orthogonal), which a tilted block tilts
+// with it.
 struct TiltStats {
   int images = 0;
   double mean_axis_tilt_deg = 0.0;  // of the mean optical axis: the block's tilt
   double median_deg = 0.0;
   double max_deg = 0.0;
+  int ground_points = 0;            // tie points in the plane fit (3 or more, else no slope)
+  double ground_slope_deg = 0.0;
 };
 TiltStats MeasureTilt(const SparseModel& model);
 

@@ -432,7 +432,9 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                                    {"axes_spread_deg", v.spread_deg},
                                    {"mean_axis_tilt_deg", r.tilt.mean_axis_tilt_deg},
                                    {"median_tilt_deg", r.tilt.median_deg},
-                                   {"max_tilt_deg", r.tilt.max_deg}};
+                                   {"max_tilt_deg", r.tilt.max_deg},
+                                   {"ground_slope_deg", r.tilt.ground_slope_deg},
+                                   {"ground_slope_points", r.tilt.ground_points}};
     if (r.gimbal_vertical.images > 0) {
       const GimbalVertical& gv = r.gimbal_vertical;
       j["adjustment"]["attitude"]["gimbal_vertical"] = {
