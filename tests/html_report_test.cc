@@ -102,6 +102,8 @@ TEST(HtmlReport, AttitudeDriftAndFootprintCoverage) {
                        {"mean_axis_tilt_deg", 0.14},
                        {"median_tilt_deg", 2.3},
                        {"max_tilt_deg", 6.7},
+                       {"ground_slope_deg", 2.34},
+                       {"ground_slope_points", 5120},
                        {"gimbal",
                         {{"images", 18},
                          {"block_tilt_deg", 0.6},
@@ -127,6 +129,7 @@ TEST(HtmlReport, AttitudeDriftAndFootprintCoverage) {
   const std::string html = RenderHtmlReport(r, "");
   EXPECT_NE(html.find("<h2>Attitude and GNSS drift</h2>"), std::string::npos);
   EXPECT_NE(html.find("mean optical axis 0.1&deg;"), std::string::npos);
+  EXPECT_NE(html.find("The ground's mean slope: 2.3&deg; (plane through 5120 tie points)."), std::string::npos);
   EXPECT_NE(html.find("gimbal angles (18 photos): the block 0.6&deg; off the vertical their pitches state; per photo "
                       "pitch differs by 1.3&deg; (median), 2.8&deg; at most; headings by 3.9&deg; (median) after a "
                       "common compass offset of -6.1&deg;"),

@@ -669,7 +669,12 @@ std::string AttitudeAndDrift(const json& r) {
   std::ostringstream h;
   h << "<h2>Attitude and GNSS drift</h2><p>Viewing geometry: " << Escape(Text(att, "viewing", "–"))
     << ". Adjusted tilt from nadir: mean optical axis " << Num(Get(att, "mean_axis_tilt_deg"), 1) << "&deg;, median photo "
-    << Num(Get(att, "median_tilt_deg"), 1) << "&deg;, largest " << Num(Get(att, "max_tilt_deg"), 1) << "&deg;.</p>";
+    << Num(Get(att, "median_tilt_deg"), 1) << "&deg;, largest " << Num(Get(att, "max_tilt_deg"), 1) << "&deg;.";
+  if (att.value("ground_slope_points", 0) > 0) {
+    h << " The ground's mean slope: " << Num(Get(att, "ground_slope_deg"), 1) << "&deg; (plane through "
+      << att.value("ground_slope_points", 0) << " tie points).";
+  }
+  h << "</p>";
   if (att.contains("gimbal")) {
     const json& g = att["gimbal"];
     h << "<p>Against the photos' gimbal angles (" << g.value("images", 0) << " photos): the block "
