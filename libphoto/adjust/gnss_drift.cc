@@ -25,6 +25,19 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
 }
 
+// The mean of unit directions and their spread (median angle from it, in
+// degrees); false when they cancel out.
+bool MeanDirection(const std::vector<Eigen::Vector3d>& directions, Eigen::Vector3d* mean, double* spread_deg) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& d : directions) sum += d;
+  if (sum.norm() < 1e-9) return false;
+  *mean = sum.normalized();
+  std::vector<double> angles;
+  for (const auto& d : directions) angles.push_back(AngleDeg(d, *mean));
+  *spread_deg = Median(angles);
+  return true;
+}
+
 }  // namespace
 
 FlightTimes SplitFlights(const std::vector<double>& times_s) {
@@ -78,16 +91,10 @@ ViewingGeometry MeasureViewingGeometry(const SparseModel& model) {
     g.reason = "fewer than 3 registered images";
     return g;
   }
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const auto& a : axes) sum += a;
-  if (sum.norm() < 1e-9) {
+  if (!MeanDirection(axes, &g.mean_axis, &g.spread_deg)) {
     g.reason = "the optical axes point every way";
     return g;
   }
-  g.mean_axis = sum.normalized();
-  std::vector<double> angles;
-  for (const auto& a : axes) angles.push_back(AngleDeg(a, g.mean_axis));
-  g.spread_deg = Median(angles);
 
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const auto& c : centres) centroid += c;
@@ -180,16 +187,10 @@ GimbalVertical MeasureGimbalVertical(const SparseModel& model, const std::map<st
     v.reason = text;
     return v;
   }
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const auto& d : downs) sum += d;
-  if (sum.norm() < 1e-9) {
+  if (!MeanDirection(downs, &v.down_in_model, &v.spread_deg)) {
     v.reason = "the gimbals' verticals point every way";
     return v;
   }
-  v.down_in_model = sum.normalized();
-  std::vector<double> angles;
-  for (const auto& d : downs) angles.push_back(AngleDeg(d, v.down_in_model));
-  v.spread_deg = Median(angles);
   v.usable = v.spread_deg <= 10.0;
   std::snprintf(text, sizeof text, "the verticals of %d photos' gimbal pitches agree within %.1f deg (median)%s",
                 v.images, v.spread_deg, v.usable ? "" : ": too far apart to say where down is (10 deg allowed)");
