@@ -8,10 +8,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <map>
+#include <tuple>
 #include <memory>
 #include <random>
 
 #include "georef/crs.h"
+#include "libphoto/export/cloud_tiles.h"
 #include "libphoto/export/contours.h"
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/point_cloud.h"
@@ -181,6 +185,96 @@ TEST(Las, ClassesRoundTrip) {
   WriteLas(cloud, dir.path() / "c.las");
   const CrsCloud back = ReadLas(dir.path() / "c.las");
   EXPECT_EQ(back.classes, cloud.classes);
+}
+
+// The products of a cloud written tile by tile (never whole in memory) are
+// those of the whole cloud: tiles of 9 m cut through every building and the
+// noise, so a cell or a noise test that missed its neighbours across a seam
+// would change a height or a class.
+TEST(TiledCloud, ProductsEqualTheWholeCloudsAcrossEveryTileSeam) {
+  const Scene scene = MakeScene(6);
+  std::vector<std::array<std::uint8_t, 3>> rgb;
+  for (size_t i = 0; i < scene.xyz.size(); ++i) {
+    rgb.push_back({static_cast<std::uint8_t>(i % 251), static_cast<std::uint8_t>(i % 13), 7});
+  }
+  const Crs crs = Crs::FromString("EPSG:32632");
+  CloudProductOptions o;
+  o.dsm.resolution_m = 0.25;
+  o.threads = 2;
+  o.las_wkt = crs.WktV1();
+  o.raster_wkt = crs.Wkt();
+  o.crs_name = crs.Name();
+  testing::TempDir dir;
+  TiledCloud tiles(dir.path() / "tiles", 9.0, CloudProductsHalo(o));
+  // In batches, as fusion hands them over.
+  for (size_t begin = 0; begin < scene.xyz.size(); begin += 10000) {
+    const size_t end = std::min(scene.xyz.size(), begin + 10000);
+    tiles.Add({scene.xyz.begin() + begin, scene.xyz.begin() + end}, {rgb.begin() + begin, rgb.begin() + end});
+  }
+  tiles.Finish();
+  ASSERT_EQ(tiles.count(), scene.xyz.size());
+  ASSERT_GE(tiles.num_tiles(), 40u);  // 70 x 55 m in 9 m tiles
+  const CloudProducts tiled = WriteCloudProducts(tiles, dir.path() / "c.las", dir.path() / "c.ply", o);
+
+  GroundFilterSummary whole_summary;
+  const std::vector<std::uint8_t> classes = ClassifyGround(scene.xyz, o.ground, &whole_summary);
+  DsmSummary dsm_summary;
+  const Raster dsm = RasterizeDsm(scene.xyz, o.raster_wkt, o.dsm, &dsm_summary);
+  DtmSummary dtm_summary;
+  const Raster dtm = RasterizeDtm(scene.xyz, classes, dsm, {}, &dtm_summary);
+
+  EXPECT_EQ(tiled.dsm.geotransform, dsm.geotransform);
+  ASSERT_EQ(tiled.dsm.values.size(), dsm.values.size());
+  size_t dsm_differ = 0, dtm_differ = 0;
+  for (size_t k = 0; k < dsm.values.size(); ++k) dsm_differ += tiled.dsm.values[k] != dsm.values[k];
+  EXPECT_EQ(dsm_differ, 0u);
+  EXPECT_EQ(tiled.dsm_summary.cells_with_data, dsm_summary.cells_with_data);
+  EXPECT_EQ(tiled.dsm_summary.cells_filled, dsm_summary.cells_filled);
+  ASSERT_TRUE(tiled.has_dtm);
+  ASSERT_EQ(tiled.dtm.values.size(), dtm.values.size());
+  for (size_t k = 0; k < dtm.values.size(); ++k) dtm_differ += tiled.dtm.values[k] != dtm.values[k];
+  EXPECT_EQ(dtm_differ, 0u);
+  EXPECT_EQ(tiled.dtm_summary.cells_ground, dtm_summary.cells_ground);
+  EXPECT_EQ(tiled.ground.ground, whole_summary.ground);
+  EXPECT_EQ(tiled.ground.above, whole_summary.above);
+  EXPECT_EQ(tiled.ground.noise, whole_summary.noise);
+  EXPECT_GT(whole_summary.noise, 0);
+
+  // The LAS holds every point once, with the class the whole cloud gives it.
+  const CrsCloud back = ReadLas(dir.path() / "c.las");
+  ASSERT_EQ(back.xyz.size(), scene.xyz.size());
+  auto key = [](const Eigen::Vector3d& p) {
+    return std::make_tuple(std::llround(p.x() * 1000), std::llround(p.y() * 1000), std::llround(p.z() * 1000));
+  };
+  std::map<std::tuple<long long, long long, long long>, std::uint8_t> expected;
+  for (size_t i = 0; i < scene.xyz.size(); ++i) expected[key(scene.xyz[i])] = classes[i];
+  size_t missing = 0, wrong = 0;
+  for (size_t i = 0; i < back.xyz.size(); ++i) {
+    const auto it = expected.find(key(back.xyz[i]));
+    if (it == expected.end()) {
+      ++missing;
+    } else {
+      wrong += it->second != back.classes[i];
+      expected.erase(it);
+    }
+  }
+  EXPECT_EQ(missing, 0u);
+  EXPECT_EQ(wrong, 0u);
+  EXPECT_TRUE(expected.empty());
+  // The PLY: its header's count, and 27 bytes a point after it.
+  std::ifstream ply(dir.path() / "c.ply", std::ios::binary);
+  std::string line, header;
+  long long vertices = -1;
+  while (std::getline(ply, line)) {
+    header += line + "\n";
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::stoll(line.substr(15));
+    if (line == "end_header") break;
+  }
+  EXPECT_EQ(vertices, static_cast<long long>(scene.xyz.size()));
+  EXPECT_EQ(std::filesystem::file_size(dir.path() / "c.ply"), header.size() + 27 * scene.xyz.size());
+  // No tile file is left once the cloud is removed.
+  tiles.Remove();
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "tiles"));
 }
 
 // Contours through OGR: CRS, attributes, index lines, smoothing.

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <exception>
 #include <mutex>
 #include <thread>
@@ -29,6 +30,66 @@ void ParallelFor(std::size_t n, unsigned threads, const std::function<void(std::
         if (!first) first = std::current_exception();
         failed = true;
       }
+    }
+  };
+  const unsigned count = static_cast<unsigned>(std::min<std::size_t>(std::max(1u, threads), std::max<std::size_t>(n, 1)));
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < count; ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  if (first) std::rethrow_exception(first);
+}
+
+void ParallelForInOrder(std::size_t n, unsigned threads, const std::function<void(std::size_t)>& work,
+                        const std::function<void(std::size_t)>& in_order, std::size_t window) {
+  window = std::max<std::size_t>(1, window);
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::size_t next_work = 0, next_emit = 0;
+  std::vector<char> done(n, 0);
+  bool failed = false, emitting = false;
+  std::exception_ptr first;
+  auto fail = [&] {  // with the mutex held
+    if (!first) first = std::current_exception();
+    failed = true;
+    changed.notify_all();
+  };
+  auto worker = [&] {
+    for (;;) {
+      std::size_t k = 0;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [&] { return failed || next_work >= n || next_work < next_emit + window; });
+        if (failed || next_work >= n) return;
+        k = next_work++;
+      }
+      try {
+        work(k);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        fail();
+        return;
+      }
+      std::unique_lock<std::mutex> lock(mutex);
+      done[k] = 1;
+      if (emitting) continue;  // the thread emitting will reach k
+      emitting = true;
+      while (!failed && next_emit < n && done[next_emit]) {
+        const std::size_t e = next_emit;
+        lock.unlock();
+        try {
+          in_order(e);
+        } catch (...) {
+          lock.lock();
+          emitting = false;
+          fail();
+          return;
+        }
+        lock.lock();
+        ++next_emit;
+        changed.notify_all();
+      }
+      emitting = false;
     }
   };
   const unsigned count = static_cast<unsigned>(std::min<std::size_t>(std::max(1u, threads), std::max<std::size_t>(n, 1)));

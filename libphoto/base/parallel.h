@@ -21,4 +21,13 @@ unsigned ThreadCount(int requested);
 
 void ParallelFor(std::size_t n, unsigned threads, const std::function<void(std::size_t)>& body);
 
+// As ParallelFor, and then in_order(k) for every k in increasing order, one
+// at a time, each as soon as work(0..k) are done: parallel work feeding one
+// sequential writer (a file written tile by tile, the same every run). No
+// work(k) starts while in_order has not yet reached k - window + 1, so at
+// most `window` results wait in the caller's hands. Exceptions from either
+// function stop the loop and are rethrown in the caller, as ParallelFor's.
+void ParallelForInOrder(std::size_t n, unsigned threads, const std::function<void(std::size_t)>& work,
+                        const std::function<void(std::size_t)>& in_order, std::size_t window);
+
 }  // namespace aerotri

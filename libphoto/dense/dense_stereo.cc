@@ -314,13 +314,11 @@ TileGrid FusionGrid(double res, const DenseOptions& o) { return {res, o.tile_vox
 // it are read for it. Within a tile the points are sorted by voxel and
 // reduced (a sort beats a node hash map several times over at millions of
 // voxels); tiles run on all cores.
-DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& o,
-                DenseSummary* s) {
+void Fuse(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& o,
+          const FusedTileSink& sink, DenseSummary* s) {
   DenseSummary unused;
   if (s == nullptr) s = &unused;
-  DenseCloud cloud;
-  cloud.resolution_m = res;
-  if (files.empty()) return cloud;
+  if (files.empty()) return;
   std::vector<Eigen::Vector3d> lo, hi;
   std::vector<DepthPoints> heads;  // bounding boxes and tile tables
   Eigen::Vector2d all_lo(1e300, 1e300), all_hi(-1e300, -1e300);
@@ -349,8 +347,11 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
     std::uint16_t file;
     std::uint8_t rgb[3];
   };
-  std::vector<DenseCloud> parts(tiles.size());  // kept in tile order: the same cloud every run
-  ParallelFor(tiles.size(), ThreadCount(o.num_threads), [&](size_t t) {
+  // Tiles on all cores, handed to the sink in tile order (the same cloud
+  // every run); at most two tiles a thread wait for their turn.
+  const unsigned threads = ThreadCount(o.num_threads);
+  std::vector<DenseCloud> parts(tiles.size());
+  auto fuse_tile = [&](size_t t) {
     const auto [tx, ty] = tiles[t];
     const double bx0 = tx * tile, bx1 = (tx + 1) * tile, by0 = ty * tile, by1 = (ty + 1) * tile;
     auto meets_tile = [&](size_t f) {
@@ -451,35 +452,44 @@ DenseCloud Fuse(const std::vector<std::filesystem::path>& files, double res, con
                               static_cast<std::uint8_t>(rgb[2] / n)});
       part.views.push_back(static_cast<std::uint16_t>(views));
     }
-  });
-  // Reserved (not yet resident) at the total, then each tile appended and
-  // freed: resident memory stays one cloud plus one tile, not two clouds.
-  size_t total = 0;
-  for (const DenseCloud& part : parts) total += part.positions.size();
-  cloud.positions.reserve(total);
-  cloud.colours.reserve(total);
-  cloud.views.reserve(total);
-  for (DenseCloud& part : parts) {
-    if (part.positions.empty()) continue;
-    ++s->tiles;
-    cloud.positions.insert(cloud.positions.end(), part.positions.begin(), part.positions.end());
-    cloud.colours.insert(cloud.colours.end(), part.colours.begin(), part.colours.end());
-    cloud.views.insert(cloud.views.end(), part.views.begin(), part.views.end());
-    part = DenseCloud();
-    // A tile's arrays below glibc's (dynamic, up to 32 MB) mmap threshold
-    // come from the heap, and free() keeps those pages: without handing
-    // them back as they are copied, resident memory reaches two clouds.
-    ReleaseFreedMemory();
-  }
-  s->fused_points = static_cast<long long>(cloud.positions.size());
-  return cloud;
+    part.resolution_m = res;
+    if (sink.prepare && !part.positions.empty()) sink.prepare(&part);
+  };
+  ParallelForInOrder(
+      tiles.size(), threads, fuse_tile,
+      [&](size_t t) {
+        DenseCloud part = std::move(parts[t]);
+        parts[t] = DenseCloud();
+        if (part.positions.empty()) return;
+        ++s->tiles;
+        s->fused_points += static_cast<long long>(part.positions.size());
+        sink.consume(std::move(part));
+        // A tile's arrays below glibc's (dynamic, up to 32 MB) mmap
+        // threshold come from the heap, and free() keeps those pages.
+        ReleaseFreedMemory();
+      },
+      2 * threads);
+}
+
+// A sink that gathers the tiles into one cloud.
+FusedTileSink Gather(DenseCloud* cloud) {
+  FusedTileSink sink;
+  sink.consume = [cloud](DenseCloud&& part) {
+    cloud->positions.insert(cloud->positions.end(), part.positions.begin(), part.positions.end());
+    cloud->colours.insert(cloud->colours.end(), part.colours.begin(), part.colours.end());
+    cloud->views.insert(cloud->views.end(), part.views.begin(), part.views.end());
+  };
+  return sink;
 }
 
 }  // namespace
 
 DenseCloud FuseDepthMaps(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& options,
                          DenseSummary* summary) {
-  return Fuse(files, res, options, summary);
+  DenseCloud cloud;
+  cloud.resolution_m = res;
+  Fuse(files, res, options, Gather(&cloud), summary);
+  return cloud;
 }
 
 void WriteDepthMap(const std::filesystem::path& path, const std::vector<Eigen::Vector3d>& points,
@@ -662,6 +672,17 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
 
 DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int)>& load_image,
                              const DenseOptions& o, const ProgressCallback& progress, DenseSummary* summary) {
+  DenseCloud cloud;
+  DenseSummary local;
+  DenseSummary& s = summary ? *summary : local;
+  ComputeDenseCloud(model, load_image, o, progress, Gather(&cloud), &s);
+  cloud.resolution_m = s.resolution_m;
+  return cloud;
+}
+
+void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int)>& load_image,
+                       const DenseOptions& o, const ProgressCallback& progress, const FusedTileSink& sink,
+                       DenseSummary* summary) {
   DenseSummary local;
   DenseSummary& s = summary ? *summary : local;
   const double gsd = MedianGsd(model);
@@ -711,7 +732,7 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
   for (size_t k = 0; k < order.size(); ++k) {
     if (ok[k]) files.push_back(paths[k]);
   }
-  return Fuse(files, res, o, &s);
+  Fuse(files, res, o, sink, &s);
 }
 
 

@@ -95,8 +95,22 @@ struct DenseSummary {
   double resolution_m = 0.0;
 };
 
+// Where the fused cloud goes, tile by tile, so that no stage need hold all
+// of it: prepare(tile) runs on the fusing thread as soon as the tile is
+// fused (a conversion to the output CRS, in parallel), then consume(tile)
+// once per tile with points, one at a time, in tile order (the same cloud
+// every run).
+struct FusedTileSink {
+  std::function<void(DenseCloud*)> prepare;  // optional
+  std::function<void(DenseCloud&&)> consume;
+};
+
 // images[i] is the working-resolution photo (BGR) of model.images[i]'s file,
 // loaded on demand by load_image(i). Only registered images are used.
+void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int)>& load_image,
+                       const DenseOptions& options, const ProgressCallback& progress, const FusedTileSink& sink,
+                       DenseSummary* summary);
+// The same, gathered into one cloud (tests, small surveys).
 DenseCloud ComputeDenseCloud(const SparseModel& model,
                              const std::function<cv::Mat(int)>& load_image,
                              const DenseOptions& options, const ProgressCallback& progress,

@@ -41,15 +41,9 @@ std::vector<float> FilledNodata(const Raster& r, double max_distance_px, const s
   return out;
 }
 
-Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& wkt,
-                    const DsmOptions& o, DsmSummary* summary) {
-  if (xyz.empty()) throw InvalidArgument("DSM: the point cloud is empty");
+Raster DsmGrid(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi, const std::string& wkt, const DsmOptions& o) {
   if (!(o.resolution_m > 0)) throw InvalidArgument("DSM: resolution must be > 0");
-  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
-  for (const auto& p : xyz) {
-    lo = lo.cwiseMin(p.head<2>());
-    hi = hi.cwiseMax(p.head<2>());
-  }
+  if (!(hi.x() >= lo.x() && hi.y() >= lo.y())) throw InvalidArgument("DSM: the point cloud is empty");
   const double res = o.resolution_m;
   Raster r;
   const double x0 = std::floor(lo.x() / res) * res, y1 = std::ceil(hi.y() / res) * res;
@@ -62,33 +56,65 @@ Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& 
   r.geotransform = {x0, res, 0.0, y1, 0.0, -res};
   r.wkt = wkt;
   r.nodata = o.nodata;
-  // Heights per cell, then the median.
-  const size_t num_cells = static_cast<size_t>(r.width) * r.height;
-  CellHeights cells(num_cells);
-  auto cell_of = [&](const Eigen::Vector3d& p) -> long long {
-    const int cx = static_cast<int>((p.x() - x0) / res);
-    const int cy = static_cast<int>((y1 - p.y()) / res);
-    if (cx < 0 || cy < 0 || cx >= r.width || cy >= r.height) return -1;
-    return static_cast<long long>(cy) * r.width + cx;
+  r.values.assign(static_cast<size_t>(r.width) * r.height, static_cast<float>(o.nodata));
+  return r;
+}
+
+long long SetCellMedians(Raster* raster, const std::vector<Eigen::Vector3d>& xyz,
+                         const std::function<bool(size_t)>& use,
+                         const std::function<bool(const Eigen::Vector2d&)>& owns) {
+  Raster& r = *raster;
+  const double x0 = r.geotransform[0], y0 = r.geotransform[3];
+  const double dx = r.geotransform[1], dy = -r.geotransform[5];
+  auto cell_xy = [&](size_t i, int* cx, int* cy) {
+    if (use && !use(i)) return false;
+    *cx = static_cast<int>(std::floor((xyz[i].x() - x0) / dx));
+    *cy = static_cast<int>(std::floor((y0 - xyz[i].y()) / dy));
+    return *cx >= 0 && *cy >= 0 && *cx < r.width && *cy < r.height;
   };
-  for (const auto& p : xyz) {
-    const long long c = cell_of(p);
-    if (c >= 0) cells.Count(static_cast<size_t>(c));
+  // Cells numbered within the points' bounding window: a tile of a large
+  // cloud needs counters for its own cells, not the whole raster's.
+  int wx0 = r.width, wy0 = r.height, wx1 = -1, wy1 = -1;
+  for (size_t i = 0; i < xyz.size(); ++i) {
+    int cx, cy;
+    if (!cell_xy(i, &cx, &cy)) continue;
+    wx0 = std::min(wx0, cx), wx1 = std::max(wx1, cx), wy0 = std::min(wy0, cy), wy1 = std::max(wy1, cy);
+  }
+  if (wx1 < 0) return 0;
+  const int w = wx1 - wx0 + 1;
+  auto local = [&](size_t i) -> long long {
+    int cx, cy;
+    if (!cell_xy(i, &cx, &cy)) return -1;
+    return static_cast<long long>(cy - wy0) * w + (cx - wx0);
+  };
+  CellHeights cells(static_cast<size_t>(w) * (wy1 - wy0 + 1));
+  for (size_t i = 0; i < xyz.size(); ++i) {
+    if (const long long c = local(i); c >= 0) cells.Count(static_cast<size_t>(c));
   }
   cells.Allocate();
-  for (const auto& p : xyz) {
-    const long long c = cell_of(p);
-    if (c >= 0) cells.Add(static_cast<size_t>(c), static_cast<float>(p.z()));
+  for (size_t i = 0; i < xyz.size(); ++i) {
+    if (const long long c = local(i); c >= 0) cells.Add(static_cast<size_t>(c), static_cast<float>(xyz[i].z()));
   }
-  r.values.assign(num_cells, static_cast<float>(o.nodata));
+  long long set = 0;
+  for (int cy = wy0; cy <= wy1; ++cy) {
+    for (int cx = wx0; cx <= wx1; ++cx) {
+      const size_t c = static_cast<size_t>(cy - wy0) * w + (cx - wx0);
+      if (cells.empty(c)) continue;
+      if (owns && !owns({x0 + (cx + 0.5) * dx, y0 - (cy + 0.5) * dy})) continue;
+      float* mid = cells.begin(c) + cells.size(c) / 2;
+      std::nth_element(cells.begin(c), mid, cells.end(c));
+      r.at(cx, cy) = *mid;
+      ++set;
+    }
+  }
+  return set;
+}
+
+void FillDsmHoles(Raster* raster, const DsmOptions& o, DsmSummary* summary) {
+  Raster& r = *raster;
+  const double res = r.geotransform[1];
   long long with_data = 0;
-  for (size_t c = 0; c < num_cells; ++c) {
-    if (cells.empty(c)) continue;
-    float* mid = cells.begin(c) + cells.size(c) / 2;
-    std::nth_element(cells.begin(c), mid, cells.end(c));
-    r.values[c] = *mid;
-    ++with_data;
-  }
+  for (float v : r.values) with_data += v != static_cast<float>(o.nodata);
   long long filled = 0;
   if (o.fill_max_distance_m > 0) {
     const double max_px = o.fill_max_distance_m / res;
@@ -119,6 +145,19 @@ Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& 
     summary->cells_with_data = with_data;
     summary->cells_filled = filled;
   }
+}
+
+Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& wkt,
+                    const DsmOptions& o, DsmSummary* summary) {
+  if (xyz.empty()) throw InvalidArgument("DSM: the point cloud is empty");
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (const auto& p : xyz) {
+    lo = lo.cwiseMin(p.head<2>());
+    hi = hi.cwiseMax(p.head<2>());
+  }
+  Raster r = DsmGrid(lo, hi, wkt, o);
+  SetCellMedians(&r, xyz, nullptr, nullptr);
+  FillDsmHoles(&r, o, summary);
   return r;
 }
 

@@ -12,6 +12,7 @@
 // overviews, or a Cloud-Optimised GeoTIFF) with CRS, geotransform and nodata.
 
 #include <Eigen/Core>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -37,6 +38,20 @@ struct DsmSummary {
 
 Raster RasterizeDsm(const std::vector<Eigen::Vector3d>& xyz, const std::string& wkt,
                     const DsmOptions& options, DsmSummary* summary = nullptr);
+
+// RasterizeDsm in steps, for a cloud read tile by tile (cloud_tiles.h):
+// the grid over the cloud's bounds, every cell nodata;
+Raster DsmGrid(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi, const std::string& wkt,
+               const DsmOptions& options);
+// each cell whose centre `owns` accepts (null: every cell) set to the median
+// height of the points `use` accepts (null: all) that fall in it, so a tile
+// that brings every point of the cells it owns sets them as the whole cloud
+// would; returns the cells set;
+long long SetCellMedians(Raster* raster, const std::vector<Eigen::Vector3d>& xyz,
+                         const std::function<bool(size_t)>& use,
+                         const std::function<bool(const Eigen::Vector2d&)>& owns);
+// then the holes filled, as RasterizeDsm fills them.
+void FillDsmHoles(Raster* raster, const DsmOptions& options, DsmSummary* summary = nullptr);
 
 // The raster's values with nodata cells up to max_distance_px from data
 // filled by GDAL's inverse-distance FillNodata (work files in work_dir, or

@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <cerrno>
 #include <ctime>
+#include <fstream>
 #include <limits>
 
 #include "libphoto/base/atomic_file.h"
@@ -34,95 +36,199 @@ T Get(const std::string& data, size_t offset, const std::string& path) {
 
 }  // namespace
 
+namespace {
+
+void OpenForWriting(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path) {
+  if (path.has_parent_path() && !std::filesystem::exists(path.parent_path())) {
+    std::error_code ec;
+    std::filesystem::create_directories(path.parent_path(), ec);
+    if (ec) throw IoError(path.parent_path().string(), "cannot create folder: " + ec.message());
+  }
+  out->open(tmp, std::ios::binary | std::ios::trunc);
+  if (!*out) throw IoError(tmp.string(), std::string("cannot open for writing: ") + std::strerror(errno));
+}
+
+void CloseAndCommit(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path) {
+  out->flush();
+  const bool ok = static_cast<bool>(*out);
+  const int e = errno;
+  out->close();
+  if (!ok || !*out) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw IoError(path.string(), std::string("write failed: ") + (e ? std::strerror(e) : "stream error") +
+                                     " (disk full or a size limit?); nothing was kept of it");
+  }
+  CommitTemporaryFile(tmp, path);
+}
+
+}  // namespace
+
+LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, const Eigen::Vector3d& lo_in,
+                     const Eigen::Vector3d& hi_in, const std::string& crs_wkt)
+    : path_(path), tmp_(TemporaryPathFor(path)), count_(count) {
+  Eigen::Vector3d lo = lo_in, hi = hi_in;
+  if (count == 0) lo = hi = Eigen::Vector3d::Zero();
+  offset_ = (lo.array() / 1000.0).floor() * 1000.0;
+  if (((hi - offset_) / kScale).maxCoeff() > 2.1e9 || ((lo - offset_) / kScale).minCoeff() < -2.1e9) {
+    throw InvalidArgument("LAS: the cloud spans more than 2,100 km at millimetre scale");
+  }
+  lo_ = lo;
+  hi_ = hi;
+  buffer_.resize(1 << 20);
+  OpenForWriting(&out_, tmp_, path_);
+  const std::string wkt = crs_wkt + std::string(1, '\0');
+  const std::uint32_t vlr_size = 54 + static_cast<std::uint32_t>(wkt.size());
+  const std::uint32_t point_offset = 375 + (crs_wkt.empty() ? 0 : vlr_size);
+  std::ostream& out = out_;
+  out.write("LASF", 4);
+  Put<std::uint16_t>(out, 0);                             // file source id
+  Put<std::uint16_t>(out, crs_wkt.empty() ? 0 : 0x10);    // global encoding: WKT
+  out.write(std::string(16, '\0').data(), 16);            // GUID
+  Put<std::uint8_t>(out, 1);
+  Put<std::uint8_t>(out, 4);
+  PutChars(out, "aerotri", 32);
+  PutChars(out, "aerotri dense matching", 32);
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  Put<std::uint16_t>(out, static_cast<std::uint16_t>(tm.tm_yday + 1));
+  Put<std::uint16_t>(out, static_cast<std::uint16_t>(tm.tm_year + 1900));
+  Put<std::uint16_t>(out, 375);
+  Put<std::uint32_t>(out, point_offset);
+  Put<std::uint32_t>(out, crs_wkt.empty() ? 0 : 1);
+  Put<std::uint8_t>(out, 7);
+  Put<std::uint16_t>(out, 36);
+  Put<std::uint32_t>(out, 0);  // legacy counts are 0 for formats 6-10
+  for (int r = 0; r < 5; ++r) Put<std::uint32_t>(out, 0);
+  for (int k = 0; k < 3; ++k) Put<double>(out, kScale);
+  for (int k = 0; k < 3; ++k) Put<double>(out, offset_[k]);
+  for (int k = 0; k < 3; ++k) {
+    Put<double>(out, hi[k]);
+    Put<double>(out, lo[k]);
+  }
+  Put<std::uint64_t>(out, 0);  // waveform
+  Put<std::uint64_t>(out, 0);  // first EVLR
+  Put<std::uint32_t>(out, 0);  // EVLR count
+  Put<std::uint64_t>(out, count);
+  Put<std::uint64_t>(out, count);  // all first returns
+  for (int r = 1; r < 15; ++r) Put<std::uint64_t>(out, 0);
+  if (!crs_wkt.empty()) {
+    Put<std::uint16_t>(out, 0);
+    PutChars(out, "LASF_Projection", 16);
+    Put<std::uint16_t>(out, 2112);
+    Put<std::uint16_t>(out, static_cast<std::uint16_t>(wkt.size()));
+    PutChars(out, "OGC WKT coordinate system", 32);
+    out.write(wkt.data(), static_cast<std::streamsize>(wkt.size()));
+  }
+}
+
+LasWriter::~LasWriter() {
+  if (committed_) return;
+  out_.close();
+  std::error_code ec;
+  std::filesystem::remove(tmp_, ec);
+}
+
+void LasWriter::Add(const Eigen::Vector3d& p, const std::array<std::uint8_t, 3>& c, std::uint8_t asprs_class) {
+  if (written_ >= count_) throw InvalidArgument(path_.string() + ": more points than the " + std::to_string(count_) + " announced");
+  if ((p - lo_).minCoeff() < -1e-6 || (hi_ - p).minCoeff() < -1e-6) {
+    throw InvalidArgument(path_.string() + ": a point outside the bounds announced in the header");
+  }
+  char* record = buffer_.data() + used_;
+  std::memset(record, 0, 36);
+  const Eigen::Vector3d q = ((p - offset_) / kScale).array().round();
+  const std::int32_t xyz[3] = {static_cast<std::int32_t>(q.x()), static_cast<std::int32_t>(q.y()),
+                               static_cast<std::int32_t>(q.z())};
+  std::memcpy(record, xyz, 12);
+  record[14] = 0x11;  // return 1 of 1
+  record[16] = static_cast<char>(asprs_class);
+  const std::uint16_t rgb[3] = {static_cast<std::uint16_t>(c[0] * 257), static_cast<std::uint16_t>(c[1] * 257),
+                                static_cast<std::uint16_t>(c[2] * 257)};
+  std::memcpy(record + 30, rgb, 6);
+  used_ += 36;
+  ++written_;
+  if (used_ + 36 > buffer_.size()) Flush();
+}
+
+void LasWriter::Flush() {
+  out_.write(buffer_.data(), static_cast<std::streamsize>(used_));
+  used_ = 0;
+}
+
+void LasWriter::Commit() {
+  if (written_ != count_) {
+    throw InvalidArgument(path_.string() + ": " + std::to_string(written_) + " points written, " +
+                          std::to_string(count_) + " announced");
+  }
+  Flush();
+  CloseAndCommit(&out_, tmp_, path_);
+  committed_ = true;
+}
+
+PlyWriter::PlyWriter(const std::filesystem::path& path, std::uint64_t count, const std::string& crs_name)
+    : path_(path), tmp_(TemporaryPathFor(path)), count_(count) {
+  buffer_.resize(1 << 20);
+  OpenForWriting(&out_, tmp_, path_);
+  out_ << "ply\nformat binary_little_endian 1.0\ncomment generated by aerotri\n";
+  if (!crs_name.empty()) out_ << "comment crs " << crs_name << "\n";
+  out_ << "element vertex " << count << "\n"
+       << "property double x\nproperty double y\nproperty double z\n"
+       << "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+}
+
+PlyWriter::~PlyWriter() {
+  if (committed_) return;
+  out_.close();
+  std::error_code ec;
+  std::filesystem::remove(tmp_, ec);
+}
+
+void PlyWriter::Add(const Eigen::Vector3d& p, const std::array<std::uint8_t, 3>& c) {
+  if (written_ >= count_) throw InvalidArgument(path_.string() + ": more points than the " + std::to_string(count_) + " announced");
+  char* record = buffer_.data() + used_;
+  for (int k = 0; k < 3; ++k) std::memcpy(record + 8 * k, &p[k], 8);
+  std::memcpy(record + 24, c.data(), 3);
+  used_ += 27;
+  ++written_;
+  if (used_ + 27 > buffer_.size()) {
+    out_.write(buffer_.data(), static_cast<std::streamsize>(used_));
+    used_ = 0;
+  }
+}
+
+void PlyWriter::Commit() {
+  if (written_ != count_) {
+    throw InvalidArgument(path_.string() + ": " + std::to_string(written_) + " points written, " +
+                          std::to_string(count_) + " announced");
+  }
+  out_.write(buffer_.data(), static_cast<std::streamsize>(used_));
+  used_ = 0;
+  CloseAndCommit(&out_, tmp_, path_);
+  committed_ = true;
+}
+
 void WriteLas(const CrsCloud& cloud, const std::filesystem::path& path) {
-  const size_t n = cloud.xyz.size();
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
   Eigen::Vector3d hi = -lo;
   for (const auto& p : cloud.xyz) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  if (n == 0) lo = hi = Eigen::Vector3d::Zero();
-  const double scale = 0.001;
-  const Eigen::Vector3d offset = (lo.array() / 1000.0).floor() * 1000.0;
-  if (((hi - offset) / scale).maxCoeff() > 2.1e9) {
-    throw InvalidArgument("LAS: the cloud spans more than 2,100 km at millimetre scale");
+  LasWriter las(path, cloud.xyz.size(), lo, hi, cloud.crs_wkt);
+  for (size_t i = 0; i < cloud.xyz.size(); ++i) {
+    las.Add(cloud.xyz[i], i < cloud.rgb.size() ? cloud.rgb[i] : std::array<std::uint8_t, 3>{0, 0, 0},
+            i < cloud.classes.size() ? cloud.classes[i] : 1);  // 1: unclassified
   }
-  const std::string wkt = cloud.crs_wkt + std::string(1, '\0');
-  const std::uint32_t vlr_size = 54 + static_cast<std::uint32_t>(wkt.size());
-  const std::uint32_t point_offset = 375 + (cloud.crs_wkt.empty() ? 0 : vlr_size);
-  WriteFileAtomically(path, [&](std::ostream& out) {
-    out.write("LASF", 4);
-    Put<std::uint16_t>(out, 0);                                  // file source id
-    Put<std::uint16_t>(out, cloud.crs_wkt.empty() ? 0 : 0x10);   // global encoding: WKT
-    out.write(std::string(16, '\0').data(), 16);                 // GUID
-    Put<std::uint8_t>(out, 1);
-    Put<std::uint8_t>(out, 4);
-    PutChars(out, "aerotri", 32);
-    PutChars(out, "aerotri dense matching", 32);
-    const std::time_t now = std::time(nullptr);
-    std::tm tm{};
-    gmtime_r(&now, &tm);
-    Put<std::uint16_t>(out, static_cast<std::uint16_t>(tm.tm_yday + 1));
-    Put<std::uint16_t>(out, static_cast<std::uint16_t>(tm.tm_year + 1900));
-    Put<std::uint16_t>(out, 375);
-    Put<std::uint32_t>(out, point_offset);
-    Put<std::uint32_t>(out, cloud.crs_wkt.empty() ? 0 : 1);
-    Put<std::uint8_t>(out, 7);
-    Put<std::uint16_t>(out, 36);
-    Put<std::uint32_t>(out, 0);  // legacy counts are 0 for formats 6-10
-    for (int r = 0; r < 5; ++r) Put<std::uint32_t>(out, 0);
-    for (int k = 0; k < 3; ++k) Put<double>(out, scale);
-    for (int k = 0; k < 3; ++k) Put<double>(out, offset[k]);
-    for (int k = 0; k < 3; ++k) {
-      Put<double>(out, hi[k]);
-      Put<double>(out, lo[k]);
-    }
-    Put<std::uint64_t>(out, 0);  // waveform
-    Put<std::uint64_t>(out, 0);  // first EVLR
-    Put<std::uint32_t>(out, 0);  // EVLR count
-    Put<std::uint64_t>(out, n);
-    Put<std::uint64_t>(out, n);  // all first returns
-    for (int r = 1; r < 15; ++r) Put<std::uint64_t>(out, 0);
-    if (!cloud.crs_wkt.empty()) {
-      Put<std::uint16_t>(out, 0);
-      PutChars(out, "LASF_Projection", 16);
-      Put<std::uint16_t>(out, 2112);
-      Put<std::uint16_t>(out, static_cast<std::uint16_t>(wkt.size()));
-      PutChars(out, "OGC WKT coordinate system", 32);
-      out.write(wkt.data(), static_cast<std::streamsize>(wkt.size()));
-    }
-    std::vector<char> record(36, 0);
-    for (size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d q = ((cloud.xyz[i] - offset) / scale).array().round();
-      const std::int32_t xyz[3] = {static_cast<std::int32_t>(q.x()), static_cast<std::int32_t>(q.y()),
-                                   static_cast<std::int32_t>(q.z())};
-      std::memcpy(record.data(), xyz, 12);
-      record[14] = 0x11;  // return 1 of 1
-      record[15] = 0;
-      record[16] = i < cloud.classes.size() ? static_cast<char>(cloud.classes[i]) : 1;  // 1: unclassified
-      const std::array<std::uint8_t, 3> c = i < cloud.rgb.size() ? cloud.rgb[i] : std::array<std::uint8_t, 3>{0, 0, 0};
-      const std::uint16_t rgb[3] = {static_cast<std::uint16_t>(c[0] * 257), static_cast<std::uint16_t>(c[1] * 257),
-                                    static_cast<std::uint16_t>(c[2] * 257)};
-      std::memcpy(record.data() + 30, rgb, 6);
-      out.write(record.data(), 36);
-    }
-  });
+  las.Commit();
 }
 
 void WritePly(const CrsCloud& cloud, const std::filesystem::path& path) {
-  WriteFileAtomically(path, [&](std::ostream& out) {
-    out << "ply\nformat binary_little_endian 1.0\ncomment generated by aerotri\n";
-    if (!cloud.crs_name.empty()) out << "comment crs " << cloud.crs_name << "\n";
-    out << "element vertex " << cloud.xyz.size() << "\n"
-        << "property double x\nproperty double y\nproperty double z\n"
-        << "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
-    for (size_t i = 0; i < cloud.xyz.size(); ++i) {
-      for (int k = 0; k < 3; ++k) Put<double>(out, cloud.xyz[i][k]);
-      const auto c = i < cloud.rgb.size() ? cloud.rgb[i] : std::array<std::uint8_t, 3>{0, 0, 0};
-      out.write(reinterpret_cast<const char*>(c.data()), 3);
-    }
-  });
+  PlyWriter ply(path, cloud.xyz.size(), cloud.crs_name);
+  for (size_t i = 0; i < cloud.xyz.size(); ++i) {
+    ply.Add(cloud.xyz[i], i < cloud.rgb.size() ? cloud.rgb[i] : std::array<std::uint8_t, 3>{0, 0, 0});
+  }
+  ply.Commit();
 }
 
 CrsCloud ReadLas(const std::filesystem::path& path) {

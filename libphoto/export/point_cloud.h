@@ -16,6 +16,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,50 @@ struct CrsCloud {
 
 void WriteLas(const CrsCloud& cloud, const std::filesystem::path& path);
 void WritePly(const CrsCloud& cloud, const std::filesystem::path& path);
+
+// The same files for a cloud written in batches (never all in memory): the
+// header, with the count and bounds known beforehand, then the points, then
+// Commit() renames the finished file onto path. Destroyed uncommitted (an
+// exception on the way), the temporary file is removed and path untouched.
+class LasWriter {
+ public:
+  LasWriter(const std::filesystem::path& path, std::uint64_t count, const Eigen::Vector3d& lo,
+            const Eigen::Vector3d& hi, const std::string& crs_wkt);
+  ~LasWriter();
+  LasWriter(const LasWriter&) = delete;
+  LasWriter& operator=(const LasWriter&) = delete;
+  void Add(const Eigen::Vector3d& p, const std::array<std::uint8_t, 3>& rgb, std::uint8_t asprs_class);
+  void Commit();  // throws unless exactly `count` points were added
+
+ private:
+  void Flush();
+  static constexpr double kScale = 0.001;
+  std::filesystem::path path_, tmp_;
+  std::ofstream out_;
+  std::vector<char> buffer_;
+  std::size_t used_ = 0;
+  std::uint64_t count_ = 0, written_ = 0;
+  Eigen::Vector3d offset_, lo_, hi_;
+  bool committed_ = false;
+};
+
+class PlyWriter {
+ public:
+  PlyWriter(const std::filesystem::path& path, std::uint64_t count, const std::string& crs_name);
+  ~PlyWriter();
+  PlyWriter(const PlyWriter&) = delete;
+  PlyWriter& operator=(const PlyWriter&) = delete;
+  void Add(const Eigen::Vector3d& p, const std::array<std::uint8_t, 3>& rgb);
+  void Commit();  // throws unless exactly `count` points were added
+
+ private:
+  std::filesystem::path path_, tmp_;
+  std::ofstream out_;
+  std::vector<char> buffer_;
+  std::size_t used_ = 0;
+  std::uint64_t count_ = 0, written_ = 0;
+  bool committed_ = false;
+};
 
 // Reads LAS 1.2-1.4 point formats 0-3 and 6-8 (XYZ, classes, RGB where
 // present, the WKT VLR where present). Throws ParseError for anything else.

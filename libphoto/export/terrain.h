@@ -30,6 +30,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <vector>
 
 #include "libphoto/export/raster.h"
@@ -58,6 +59,40 @@ std::vector<std::uint8_t> ClassifyGround(const std::vector<Eigen::Vector3d>& xyz
                                          const GroundFilterOptions& options,
                                          GroundFilterSummary* summary = nullptr);
 
+// ClassifyGround in steps, for a cloud read tile by tile (cloud_tiles.h).
+// The grid and the noise voxels are laid from the whole cloud's bounds, so a
+// tile that brings its neighbours within Reach() of the points it classifies
+// (and of the cells it owns) gets the classes the whole cloud would.
+class GroundFilter {
+ public:
+  GroundFilter(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const GroundFilterOptions& options);
+
+  // How far around a point its noise test and its cell look (metres).
+  double Reach() const;
+  // Isolated points, counting their neighbours among xyz only.
+  std::vector<bool> Isolated(const std::vector<Eigen::Vector3d>& xyz) const;
+  // Step 1 for the cells whose centre `owns` accepts (null: all): a low
+  // percentile of the heights of xyz's points in them, isolated ones aside.
+  void AddMinimumSurface(const std::vector<Eigen::Vector3d>& xyz, const std::vector<bool>& isolated,
+                         const std::function<bool(const Eigen::Vector2d&)>& owns);
+  // Steps 2 and 3, once every cell has been added.
+  void FinishSurface();
+  // Step 4: one point's class; counted in *summary when given.
+  std::uint8_t Classify(const Eigen::Vector3d& p, bool isolated, GroundFilterSummary* summary) const;
+
+  int grid_width() const { return nx_; }
+  int grid_height() const { return ny_; }
+
+ private:
+  long long CellOf(const Eigen::Vector3d& p) const;
+  Eigen::Vector2d CellCentre(long long cell) const;
+
+  GroundFilterOptions o_;
+  Eigen::Vector3d lo_, hi_;
+  int nx_ = 0, ny_ = 0;
+  std::vector<float> zmin_, ground_, slope_;  // row-major grids, nx_ x ny_
+};
+
 struct DtmSummary {
   long long cells_ground = 0;        // with ground points
   long long cells_interpolated = 0;  // under objects, from the ground around
@@ -69,5 +104,9 @@ struct DtmSummary {
 Raster RasterizeDtm(const std::vector<Eigen::Vector3d>& xyz, const std::vector<std::uint8_t>& classes,
                     const Raster& dsm, const std::filesystem::path& work_dir = {},
                     DtmSummary* summary = nullptr);
+// RasterizeDtm's last step, for a DTM whose cells hold the median ground
+// heights (SetCellMedians over the ground points, on the DSM's grid).
+void FinishDtm(Raster* dtm, const Raster& dsm, const std::filesystem::path& work_dir = {},
+               DtmSummary* summary = nullptr);
 
 }  // namespace aerotri

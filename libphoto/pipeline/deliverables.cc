@@ -18,6 +18,7 @@
 #include "libphoto/base/error.h"
 #include "libphoto/base/parallel.h"
 #include "libphoto/dense/dense_stereo.h"
+#include "libphoto/export/cloud_tiles.h"
 #include "libphoto/export/contours.h"
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/point_cloud.h"
@@ -100,21 +101,6 @@ GeoFrame DeliverableFrame(const json& report, const json& dense) {
   return g;
 }
 
-// ENU points to the output CRS, in place (the cloud is the largest thing in
-// memory: no second copy of it), on all cores (a Crs per thread: PROJ
-// objects are not shared across threads).
-void ToCrsInPlace(std::vector<Eigen::Vector3d>* points, const GeoFrame& g, unsigned threads) {
-  std::vector<Eigen::Vector3d>& xyz = *points;
-  auto work = [&](size_t begin, size_t end) {
-    const Crs crs = Crs::FromString(g.crs.definition());
-    for (size_t i = begin; i < end; ++i) xyz[i] = crs.FromGeodetic(g.frame.GeodeticFromEnu(xyz[i]));
-  };
-  const size_t chunk = (xyz.size() + threads - 1) / std::max(1u, threads);
-  ParallelFor(threads, threads, [&](size_t t) {
-    work(std::min(xyz.size(), t * chunk), std::min(xyz.size(), (t + 1) * chunk));
-  });
-}
-
 double DsmResolution(const PipelineOptions& o, double cloud_resolution) {
   if (o.dsm_resolution_m > 0) return o.dsm_resolution_m;
   return std::max(0.01, std::round(2.0 * cloud_resolution * 100.0) / 100.0);
@@ -122,14 +108,8 @@ double DsmResolution(const PipelineOptions& o, double cloud_resolution) {
 
 // status: the survey's (report.json), written into the GeoTIFF's metadata
 // as AEROTRI_SURVEY_STATUS so that a DSM of a failed survey says so.
-Raster WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double resolution, const PipelineOptions& o,
-                const std::string& status, const std::string& heights, const fs::path& path, json* info) {
-  DsmOptions d;
-  d.resolution_m = resolution;
-  d.fill_max_distance_m = o.dsm_fill_m;
-  d.work_dir = o.workspace;  // GDAL work files stay in the workspace
-  DsmSummary summary;
-  const Raster dsm = RasterizeDsm(xyz, crs.Wkt(), d, &summary);
+void WriteDsmRaster(const Raster& dsm, const DsmSummary& summary, double resolution, const PipelineOptions& o,
+                    const std::string& status, const std::string& heights, const fs::path& path, json* info) {
   RasterWriteOptions w;
   w.cog = o.cog;
   if (!status.empty()) w.metadata["AEROTRI_SURVEY_STATUS"] = status;
@@ -145,6 +125,17 @@ Raster WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double 
            {"filled_fraction", cells > 0 ? (summary.cells_with_data + summary.cells_filled) / cells : 0.0},
            {"fill_max_distance_m", o.dsm_fill_m},
            {"cog", o.cog}};
+}
+
+Raster WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double resolution, const PipelineOptions& o,
+                const std::string& status, const std::string& heights, const fs::path& path, json* info) {
+  DsmOptions d;
+  d.resolution_m = resolution;
+  d.fill_max_distance_m = o.dsm_fill_m;
+  d.work_dir = o.workspace;  // GDAL work files stay in the workspace
+  DsmSummary summary;
+  const Raster dsm = RasterizeDsm(xyz, crs.Wkt(), d, &summary);
+  WriteDsmRaster(dsm, summary, resolution, o, status, heights, path, info);
   return dsm;
 }
 
@@ -657,10 +648,45 @@ bool RunDenseStage(const PipelineOptions& o) {
   d.num_threads = o.num_threads;
   d.work_dir = o.workspace / "depth";
   DenseSummary summary;
-  DenseCloud cloud = ComputeDenseCloud(
+  // The fused cloud goes to disk in tiles of the output CRS as it is fused
+  // (never whole in memory: 300 million points at 1,000 photos), and the
+  // files and rasters are made from the tiles (cloud_tiles.h).
+  std::string heights;
+  const GeoFrame deliverable{g.frame, DeliverableCrs(g, o, &heights)};
+  const bool classify = !deliverable.crs.IsGeographic() && !deliverable.crs.IsGeocentric();
+  CloudProductOptions products;
+  products.dsm.fill_max_distance_m = o.dsm_fill_m;
+  products.dsm.work_dir = o.workspace;  // GDAL work files stay in the workspace
+  products.classify = classify;
+  products.ground.cell_m = o.ground_cell_m;
+  products.ground.max_window_m = o.ground_window_m;
+  products.ground.slope = o.ground_slope;
+  products.ground.elevation_threshold_m = o.ground_threshold_m;
+  products.threads = Threads(o);
+  products.las_wkt = deliverable.crs.WktV1();
+  products.raster_wkt = deliverable.crs.Wkt();
+  products.crs_name = deliverable.crs.Name();
+  std::unique_ptr<TiledCloud> tiles;  // made with the first fused tile, which gives the resolution
+  FusedTileSink sink;
+  sink.prepare = [&](DenseCloud* part) {
+    const Crs crs = Crs::FromString(deliverable.crs.definition());  // one per thread: PROJ objects are not shared
+    for (Eigen::Vector3d& p : part->positions) p = crs.FromGeodetic(deliverable.frame.GeodeticFromEnu(p));
+  };
+  sink.consume = [&](DenseCloud&& part) {
+    if (!tiles) {
+      products.dsm.resolution_m = DsmResolution(o, part.resolution_m);
+      // About 3.6 million points a tile whatever the GSD (some 3.6 points
+      // a voxel column): one tile per thread is ~0.3 GB at the most.
+      const double tile_m = std::max(20.0, 1000.0 * part.resolution_m);
+      tiles = std::make_unique<TiledCloud>(o.workspace / "depth" / "cloud", tile_m, CloudProductsHalo(products));
+    }
+    tiles->Add(part.positions, part.colours);
+  };
+  ComputeDenseCloud(
       model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
-      StageProgress(o, "dense"), &summary);
-  if (cloud.positions.empty()) {
+      StageProgress(o, "dense"), sink, &summary);
+  if (tiles) tiles->Finish();
+  if (!tiles || tiles->count() == 0) {
     // The sparse survey stands; say why there is no cloud instead of failing the run.
     const std::string why = summary.pairs + summary.pairs_failed == 0
                                 ? "no pair of photos suits rectified stereo (none side by side with enough "
@@ -674,39 +700,28 @@ bool RunDenseStage(const PipelineOptions& o) {
     }
     WriteTextFileAtomically(o.workspace / "dense.json",
                             json({{"points", 0}, {"pairs", summary.pairs}, {"skipped", why}}).dump(2) + "\n");
+    if (tiles) tiles->Remove();
     RemoveDepthMaps(o);
     RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
     return false;
   }
-  std::string heights;
-  const GeoFrame deliverable{g.frame, DeliverableCrs(g, o, &heights)};
-  CrsCloud out;
-  const double cloud_resolution = cloud.resolution_m;
-  out.xyz = std::move(cloud.positions);
-  ToCrsInPlace(&out.xyz, deliverable, Threads(o));
-  out.rgb = std::move(cloud.colours);
-  cloud = DenseCloud();
-  out.crs_wkt = deliverable.crs.WktV1();
-  out.crs_name = deliverable.crs.Name();
-  // Ground and above-ground (SMRF), then the surfaces.
-  GroundFilterOptions gf;
-  gf.cell_m = o.ground_cell_m;
-  gf.max_window_m = o.ground_window_m;
-  gf.slope = o.ground_slope;
-  gf.elevation_threshold_m = o.ground_threshold_m;
-  GroundFilterSummary ground;
-  const bool classify = !deliverable.crs.IsGeographic() && !deliverable.crs.IsGeocentric();
-  if (classify) out.classes = ClassifyGround(out.xyz, gf, &ground);
-  WriteLas(out, las);
-  WritePly(out, ply);
+  const double cloud_resolution = summary.resolution_m;
+  const std::uint64_t points = tiles->count();
+  Log(o, "dense: " + std::to_string(points) + " points fused into " + std::to_string(tiles->num_tiles()) +
+             " tiles of " + std::to_string(static_cast<int>(std::lround(tiles->tile_m()))) +
+             " m; writing the cloud, DSM and ground classes");
+  CloudProducts made = WriteCloudProducts(*tiles, las, ply, products, StageProgress(o, "dense"));
+  tiles->Remove();
+  tiles.reset();
+  const GroundFilterSummary& ground = made.ground;
+  const GroundFilterOptions& gf = products.ground;
   json dsm_info;
   const std::string status = report.value("status", "");
-  const Raster dsm_raster = WriteDsm(out.xyz, deliverable.crs, DsmResolution(o, cloud_resolution), o, status,
-                                     heights, dsm, &dsm_info);
+  WriteDsmRaster(made.dsm, made.dsm_summary, products.dsm.resolution_m, o, status, heights, dsm, &dsm_info);
   json dtm_info = json::object(), contour_info = json::object(), ground_info = json::object();
-  if (classify && ground.ground > 0) {
-    DtmSummary dtm_summary;
-    const Raster dtm_raster = RasterizeDtm(out.xyz, out.classes, dsm_raster, o.workspace, &dtm_summary);
+  if (made.has_dtm) {
+    const DtmSummary& dtm_summary = made.dtm_summary;
+    const Raster& dtm_raster = made.dtm;
     RasterWriteOptions w;
     w.cog = o.cog;
     if (!status.empty()) w.metadata["AEROTRI_SURVEY_STATUS"] = status;
@@ -745,7 +760,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   const json dense = {{"pairs", summary.pairs},
                       {"pairs_failed", summary.pairs_failed},
                       {"depth_points", summary.depth_points},
-                      {"points", out.xyz.size()},
+                      {"points", points},
                       {"resolution_m", cloud_resolution},
                       {"min_views", d.min_views},
                       {"tiles", summary.tiles},
@@ -760,7 +775,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
   RemoveDepthMaps(o);  // fused: nothing reads them now
   fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
-  Log(o, "dense: " + std::to_string(out.xyz.size()) + " points at " + std::to_string(cloud_resolution) +
+  Log(o, "dense: " + std::to_string(points) + " points at " + std::to_string(cloud_resolution) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
              std::to_string(dsm_info["height"].get<int>()) + "; " + heights);
   RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
