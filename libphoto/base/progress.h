@@ -21,4 +21,13 @@ inline bool ReportProgress(const ProgressCallback& progress, double fraction,
   return progress ? progress(fraction, message) : true;
 }
 
+// A part [begin, end] of a stage's progress: the stage's work in phases
+// (pairs, then fusion, then products) reads 0 to 1 once, not once a phase.
+inline ProgressCallback ProgressPart(const ProgressCallback& progress, double begin, double end) {
+  if (!progress) return progress;
+  return [progress, begin, end](double fraction, const std::string& message) {
+    return progress(fraction < 0 ? fraction : begin + (end - begin) * fraction, message);
+  };
+}
+
 }  // namespace aerotri

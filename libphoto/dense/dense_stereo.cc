@@ -315,7 +315,7 @@ TileGrid FusionGrid(double res, const DenseOptions& o) { return {res, o.tile_vox
 // reduced (a sort beats a node hash map several times over at millions of
 // voxels); tiles run on all cores.
 void Fuse(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& o,
-          const FusedTileSink& sink, DenseSummary* s) {
+          const FusedTileSink& sink, DenseSummary* s, const ProgressCallback& progress = {}) {
   DenseSummary unused;
   if (s == nullptr) s = &unused;
   if (files.empty()) return;
@@ -464,6 +464,9 @@ void Fuse(const std::vector<std::filesystem::path>& files, double res, const Den
         ++s->tiles;
         s->fused_points += static_cast<long long>(part.positions.size());
         sink.consume(std::move(part));
+        ReportProgress(progress, static_cast<double>(t + 1) / tiles.size(),
+                       "fusion: tile " + std::to_string(t + 1) + " of " + std::to_string(tiles.size()) + ", " +
+                           std::to_string(s->fused_points) + " points");
         // A tile's arrays below glibc's (dynamic, up to 32 MB) mmap
         // threshold come from the heap, and free() keeps those pages.
         ReleaseFreedMemory();
@@ -702,6 +705,8 @@ void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int
   for (const auto& [i, j] : order) {
     paths.push_back(o.work_dir / (model.images[i].name + "+" + model.images[j].name + ".pts"));
   }
+  // Depth maps are most of the work; fusion the rest.
+  const ProgressCallback pairs_progress = ProgressPart(progress, 0.0, 0.85);
   std::vector<char> ok(order.size(), 0);
   std::mutex mutex;
   size_t done = 0;
@@ -724,7 +729,7 @@ void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int
       ++s.pairs_failed;
     }
     if (computed) {
-      ReportProgress(progress, static_cast<double>(done) / order.size(),
+      ReportProgress(pairs_progress, static_cast<double>(done) / order.size(),
                      model.images[i].name + " + " + model.images[j].name + ": " + std::to_string(n) + " depth points");
     }
   });
@@ -732,7 +737,7 @@ void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int
   for (size_t k = 0; k < order.size(); ++k) {
     if (ok[k]) files.push_back(paths[k]);
   }
-  Fuse(files, res, o, sink, &s);
+  Fuse(files, res, o, sink, &s, ProgressPart(progress, 0.85, 1.0));
 }
 
 

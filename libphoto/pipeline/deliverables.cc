@@ -666,6 +666,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   products.las_wkt = deliverable.crs.WktV1();
   products.raster_wkt = deliverable.crs.Wkt();
   products.crs_name = deliverable.crs.Name();
+  const ProgressCallback dense_progress = StageProgress(o, "dense");  // one clock for the stage's phases
   std::unique_ptr<TiledCloud> tiles;  // made with the first fused tile, which gives the resolution
   FusedTileSink sink;
   sink.prepare = [&](DenseCloud* part) {
@@ -684,7 +685,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   };
   ComputeDenseCloud(
       model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
-      StageProgress(o, "dense"), sink, &summary);
+      ProgressPart(dense_progress, 0.0, 0.8), sink, &summary);
   if (tiles) tiles->Finish();
   if (!tiles || tiles->count() == 0) {
     // The sparse survey stands; say why there is no cloud instead of failing the run.
@@ -710,7 +711,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   Log(o, "dense: " + std::to_string(points) + " points fused into " + std::to_string(tiles->num_tiles()) +
              " tiles of " + std::to_string(static_cast<int>(std::lround(tiles->tile_m()))) +
              " m; writing the cloud, DSM and ground classes");
-  CloudProducts made = WriteCloudProducts(*tiles, las, ply, products, StageProgress(o, "dense"));
+  CloudProducts made = WriteCloudProducts(*tiles, las, ply, products, ProgressPart(dense_progress, 0.8, 1.0));
   tiles->Remove();
   tiles.reset();
   const GroundFilterSummary& ground = made.ground;
