@@ -8,6 +8,7 @@
 #include <fstream>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #include "libphoto/base/error.h"
 #include "libphoto/base/memory.h"
@@ -60,6 +61,8 @@ TiledCloud::TiledCloud(const std::filesystem::path& dir, double tile_m, double h
   std::filesystem::create_directories(dir_, ec);
   if (ec) throw IoError(dir_.string(), "cannot create folder: " + ec.message());
 }
+
+TiledCloud::~TiledCloud() { Remove(); }
 
 std::filesystem::path TiledCloud::File(long long tx, long long ty, bool halo) const {
   return dir_ / (std::to_string(tx) + "_" + std::to_string(ty) + (halo ? ".halo" : ".own"));
@@ -187,11 +190,15 @@ CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem:
   FillDsmHoles(&out.dsm, o.dsm, &out.dsm_summary);
   if (filter) filter->FinishSurface();
 
-  // Pass 2: classes, DTM cells, the files.
+  // Pass 2: classes, DTM cells, the files (when any is asked for).
+  const bool files = !las.empty() || !ply.empty();
+  if (!files && !filter) return out;
   Raster dtm = out.dsm;
   std::fill(dtm.values.begin(), dtm.values.end(), static_cast<float>(dtm.nodata));
-  LasWriter las_writer(las, cloud.count(), cloud.lo(), cloud.hi(), o.las_wkt);
-  PlyWriter ply_writer(ply, cloud.count(), o.crs_name);
+  std::optional<LasWriter> las_writer;
+  std::optional<PlyWriter> ply_writer;
+  if (!las.empty()) las_writer.emplace(las, cloud.count(), cloud.lo(), cloud.hi(), o.las_wkt);
+  if (!ply.empty()) ply_writer.emplace(ply, cloud.count(), o.crs_name);
   struct Done {
     CloudTile tile;
     std::vector<std::uint8_t> classes;
@@ -219,8 +226,8 @@ CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem:
         Done d = std::move(slots[k]);
         slots[k] = Done();
         for (std::size_t i = 0; i < d.tile.own; ++i) {
-          las_writer.Add(d.tile.xyz[i], d.tile.rgb[i], d.classes[i]);
-          ply_writer.Add(d.tile.xyz[i], d.tile.rgb[i]);
+          if (las_writer) las_writer->Add(d.tile.xyz[i], d.tile.rgb[i], d.classes[i]);
+          if (ply_writer) ply_writer->Add(d.tile.xyz[i], d.tile.rgb[i]);
         }
         out.ground.ground += d.summary.ground;
         out.ground.above += d.summary.above;
@@ -230,8 +237,8 @@ CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem:
         ReleaseFreedMemory();
       },
       2 * std::max(1u, o.threads));
-  las_writer.Commit();
-  ply_writer.Commit();
+  if (las_writer) las_writer->Commit();
+  if (ply_writer) ply_writer->Commit();
   if (filter) {
     out.ground.grid_width = filter->grid_width();
     out.ground.grid_height = filter->grid_height();

@@ -47,6 +47,7 @@ class TiledCloud {
  public:
   // Tiles of tile_m metres in dir (created; its earlier tile files removed).
   TiledCloud(const std::filesystem::path& dir, double tile_m, double halo_m);
+  ~TiledCloud();  // the tile files are scratch: removed with the object
   TiledCloud(const TiledCloud&) = delete;
   TiledCloud& operator=(const TiledCloud&) = delete;
 
@@ -65,7 +66,7 @@ class TiledCloud {
   CloudTile Read(std::size_t k) const;
   // Whether the tile (tx, ty) owns the point or cell centre xy.
   bool Owns(long long tx, long long ty, const Eigen::Vector2d& xy) const;
-  // Deletes the tile files and the folder.
+  // Deletes the tile files and the folder now.
   void Remove();
 
  private:
@@ -107,7 +108,8 @@ struct CloudProducts {
   DtmSummary dtm_summary;
 };
 
-// Writes las and ply (atomically) and returns the DSM and DTM rasters.
+// Writes las and ply (atomically; an empty path: not that file) and returns
+// the DSM and DTM rasters.
 CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem::path& las,
                                  const std::filesystem::path& ply, const CloudProductOptions& options,
                                  const ProgressCallback& progress = {});

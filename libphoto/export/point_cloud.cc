@@ -231,22 +231,33 @@ void WritePly(const CrsCloud& cloud, const std::filesystem::path& path) {
   ply.Commit();
 }
 
-CrsCloud ReadLas(const std::filesystem::path& path) {
-  const std::string data = ReadTextFile(path);
+LasHeader ReadLasInBatches(const std::filesystem::path& path, const std::function<void(CrsCloud&&)>& consume,
+                           std::size_t batch_points) {
   const std::string p = path.string();
-  if (data.size() < 227 || data.compare(0, 4, "LASF") != 0) throw ParseError(p, 0, "not a LAS file");
-  const auto minor = Get<std::uint8_t>(data, 25, p);
-  const auto header_size = Get<std::uint16_t>(data, 94, p);
-  const auto point_offset = Get<std::uint32_t>(data, 96, p);
-  const auto num_vlrs = Get<std::uint32_t>(data, 100, p);
-  const auto format = Get<std::uint8_t>(data, 104, p) & 0x3F;
-  const auto record_length = Get<std::uint16_t>(data, 105, p);
-  std::uint64_t n = Get<std::uint32_t>(data, 107, p);
-  if (minor >= 4 && header_size >= 375) n = Get<std::uint64_t>(data, 247, p);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(p, std::string("cannot open: ") + std::strerror(errno));
+  std::error_code ec;
+  const std::uintmax_t file_size = std::filesystem::file_size(path, ec);
+  std::string head(227, '\0');
+  if (ec || !in.read(head.data(), 227) || head.compare(0, 4, "LASF") != 0) throw ParseError(p, 0, "not a LAS file");
+  const auto minor = Get<std::uint8_t>(head, 25, p);
+  const auto header_size = Get<std::uint16_t>(head, 94, p);
+  const auto point_offset = Get<std::uint32_t>(head, 96, p);
+  if (point_offset < header_size || point_offset > file_size) {
+    throw ParseError(p, 0, "point data offset " + std::to_string(point_offset) + " outside the file");
+  }
+  // The header and the VLRs, all that precedes the points.
+  head.resize(point_offset);
+  if (!in.seekg(0) || !in.read(head.data(), point_offset)) throw ParseError(p, 0, "truncated LAS header");
+  const auto num_vlrs = Get<std::uint32_t>(head, 100, p);
+  const auto format = Get<std::uint8_t>(head, 104, p) & 0x3F;
+  const auto record_length = Get<std::uint16_t>(head, 105, p);
+  std::uint64_t n = Get<std::uint32_t>(head, 107, p);
+  if (minor >= 4 && header_size >= 375) n = Get<std::uint64_t>(head, 247, p);
   double scale[3], offset[3];
   for (int k = 0; k < 3; ++k) {
-    scale[k] = Get<double>(data, 131 + 8 * k, p);
-    offset[k] = Get<double>(data, 155 + 8 * k, p);
+    scale[k] = Get<double>(head, 131 + 8 * k, p);
+    offset[k] = Get<double>(head, 155 + 8 * k, p);
   }
   int rgb_at = -1;
   switch (format) {
@@ -256,31 +267,55 @@ CrsCloud ReadLas(const std::filesystem::path& path) {
     case 7: case 8: rgb_at = 30; break;
     default: throw ParseError(p, 0, "LAS point format " + std::to_string(format) + " is not supported");
   }
-  CrsCloud cloud;
+  LasHeader header;
+  header.count = n;
   size_t off = header_size;
   for (std::uint32_t v = 0; v < num_vlrs; ++v) {
-    const auto record_id = Get<std::uint16_t>(data, off + 18, p);
-    const auto length = Get<std::uint16_t>(data, off + 20, p);
-    if (record_id == 2112 && off + 54 + length <= data.size()) {
-      cloud.crs_wkt = std::string(data.c_str() + off + 54);
+    const auto record_id = Get<std::uint16_t>(head, off + 18, p);
+    const auto length = Get<std::uint16_t>(head, off + 20, p);
+    if (record_id == 2112 && off + 54 + length <= head.size()) {
+      header.crs_wkt = std::string(head.c_str() + off + 54);
     }
     off += 54 + length;
   }
-  if (point_offset + n * record_length > data.size()) throw ParseError(p, 0, "truncated LAS point data");
-  cloud.xyz.resize(n);
-  cloud.classes.resize(n);
-  if (rgb_at >= 0) cloud.rgb.resize(n);
-  for (std::uint64_t i = 0; i < n; ++i) {
-    const size_t r = point_offset + i * record_length;
-    for (int k = 0; k < 3; ++k) cloud.xyz[i][k] = Get<std::int32_t>(data, r + 4 * k, p) * scale[k] + offset[k];
-    // Formats 0-5: 5 bits of byte 15; formats 6-10: byte 16.
-    cloud.classes[i] = format >= 6 ? Get<std::uint8_t>(data, r + 16, p) : Get<std::uint8_t>(data, r + 15, p) & 0x1F;
-    if (rgb_at >= 0) {
-      for (int k = 0; k < 3; ++k) {
-        cloud.rgb[i][k] = static_cast<std::uint8_t>(Get<std::uint16_t>(data, r + rgb_at + 2 * k, p) >> 8);
+  if (record_length == 0 || point_offset + n * record_length > file_size) {
+    throw ParseError(p, 0, "truncated LAS point data");
+  }
+  batch_points = std::max<std::size_t>(1, batch_points);
+  std::string data;
+  for (std::uint64_t first = 0; first < n; first += batch_points) {
+    const std::uint64_t m = std::min<std::uint64_t>(batch_points, n - first);
+    data.resize(m * record_length);
+    if (!in.read(data.data(), static_cast<std::streamsize>(data.size()))) throw ParseError(p, 0, "truncated LAS point data");
+    CrsCloud cloud;
+    cloud.crs_wkt = header.crs_wkt;
+    cloud.xyz.resize(m);
+    cloud.classes.resize(m);
+    if (rgb_at >= 0) cloud.rgb.resize(m);
+    for (std::uint64_t i = 0; i < m; ++i) {
+      const size_t r = i * record_length;
+      for (int k = 0; k < 3; ++k) cloud.xyz[i][k] = Get<std::int32_t>(data, r + 4 * k, p) * scale[k] + offset[k];
+      // Formats 0-5: 5 bits of byte 15; formats 6-10: byte 16.
+      cloud.classes[i] = format >= 6 ? Get<std::uint8_t>(data, r + 16, p) : Get<std::uint8_t>(data, r + 15, p) & 0x1F;
+      if (rgb_at >= 0) {
+        for (int k = 0; k < 3; ++k) {
+          cloud.rgb[i][k] = static_cast<std::uint8_t>(Get<std::uint16_t>(data, r + rgb_at + 2 * k, p) >> 8);
+        }
       }
     }
+    consume(std::move(cloud));
   }
+  return header;
+}
+
+CrsCloud ReadLas(const std::filesystem::path& path) {
+  CrsCloud cloud;
+  const LasHeader header = ReadLasInBatches(path, [&](CrsCloud&& batch) {
+    cloud.xyz.insert(cloud.xyz.end(), batch.xyz.begin(), batch.xyz.end());
+    cloud.classes.insert(cloud.classes.end(), batch.classes.begin(), batch.classes.end());
+    cloud.rgb.insert(cloud.rgb.end(), batch.rgb.begin(), batch.rgb.end());
+  });
+  cloud.crs_wkt = header.crs_wkt;
   return cloud;
 }
 

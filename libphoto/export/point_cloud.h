@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -80,5 +81,14 @@ class PlyWriter {
 // Reads LAS 1.2-1.4 point formats 0-3 and 6-8 (XYZ, classes, RGB where
 // present, the WKT VLR where present). Throws ParseError for anything else.
 CrsCloud ReadLas(const std::filesystem::path& path);
+
+// The same, batch_points at a time, for a cloud too large to hold; returns
+// the header's count and CRS (each batch carries the CRS too).
+struct LasHeader {
+  std::uint64_t count = 0;
+  std::string crs_wkt;
+};
+LasHeader ReadLasInBatches(const std::filesystem::path& path, const std::function<void(CrsCloud&&)>& consume,
+                           std::size_t batch_points = std::size_t{1} << 20);
 
 }  // namespace aerotri

@@ -127,18 +127,6 @@ void WriteDsmRaster(const Raster& dsm, const DsmSummary& summary, double resolut
            {"cog", o.cog}};
 }
 
-Raster WriteDsm(const std::vector<Eigen::Vector3d>& xyz, const Crs& crs, double resolution, const PipelineOptions& o,
-                const std::string& status, const std::string& heights, const fs::path& path, json* info) {
-  DsmOptions d;
-  d.resolution_m = resolution;
-  d.fill_max_distance_m = o.dsm_fill_m;
-  d.work_dir = o.workspace;  // GDAL work files stay in the workspace
-  DsmSummary summary;
-  const Raster dsm = RasterizeDsm(xyz, crs.Wkt(), d, &summary);
-  WriteDsmRaster(dsm, summary, resolution, o, status, heights, path, info);
-  return dsm;
-}
-
 // A preview of the DSM, at most max_size pixels wide: elevation colours
 // (2nd to 98th percentile of the heights) shaded by a multidirectional
 // hillshade, nodata white; with what its legend and scale bar need.
@@ -679,7 +667,7 @@ bool RunDenseStage(const PipelineOptions& o) {
       // About 3.6 million points a tile whatever the GSD (some 3.6 points
       // a voxel column): one tile per thread is ~0.3 GB at the most.
       const double tile_m = std::max(20.0, 1000.0 * part.resolution_m);
-      tiles = std::make_unique<TiledCloud>(o.workspace / "depth" / "cloud", tile_m, CloudProductsHalo(products));
+      tiles = std::make_unique<TiledCloud>(o.workspace / "dense_tiles", tile_m, CloudProductsHalo(products));
     }
     tiles->Add(part.positions, part.colours);
   };
@@ -687,6 +675,10 @@ bool RunDenseStage(const PipelineOptions& o) {
       model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
       ProgressPart(dense_progress, 0.0, 0.8), sink, &summary);
   if (tiles) tiles->Finish();
+  // Fused: the tiles hold the cloud now, and the depth maps (25 GB at 1,000
+  // photos) need not share the disk with the LAS and PLY being written. An
+  // interruption from here on recomputes them.
+  RemoveDepthMaps(o);
   if (!tiles || tiles->count() == 0) {
     // The sparse survey stands; say why there is no cloud instead of failing the run.
     const std::string why = summary.pairs + summary.pairs_failed == 0
@@ -702,7 +694,6 @@ bool RunDenseStage(const PipelineOptions& o) {
     WriteTextFileAtomically(o.workspace / "dense.json",
                             json({{"points", 0}, {"pairs", summary.pairs}, {"skipped", why}}).dump(2) + "\n");
     if (tiles) tiles->Remove();
-    RemoveDepthMaps(o);
     RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
     return false;
   }
@@ -774,7 +765,6 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"options", DenseFingerprint(o)},
                       {"file_bytes", file_bytes}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
-  RemoveDepthMaps(o);  // fused: nothing reads them now
   fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
   Log(o, "dense: " + std::to_string(points) + " points at " + std::to_string(cloud_resolution) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
@@ -959,10 +949,29 @@ fs::path RebuildDsm(const PipelineOptions& o, fs::path path) {
   }
   const json dense = fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense") : json::object();
   const GeoFrame g = DeliverableFrame(report, dense);  // cloud.las is in it
-  const CrsCloud cloud = ReadLas(o.workspace / "cloud.las");
-  if (cloud.xyz.empty()) throw InvalidArgument((o.workspace / "cloud.las").string() + ": no points");
+  // The cloud read in batches into CRS tiles, and the DSM made tile by
+  // tile, as the dense stage makes it: never the whole cloud in memory.
+  CloudProductOptions products;
+  products.dsm.resolution_m = resolution;
+  products.dsm.fill_max_distance_m = o.dsm_fill_m;
+  products.dsm.work_dir = o.workspace;
+  products.classify = false;
+  products.threads = Threads(o);
+  products.raster_wkt = g.crs.Wkt();
+  const double spacing = dense.value("resolution_m", 0.0) > 0 ? dense.value("resolution_m", 0.0) : resolution / 2;
+  TiledCloud tiles(o.workspace / (path.filename().string() + ".tiles"), std::max(20.0, 1000.0 * spacing),
+                   CloudProductsHalo(products));
+  ReadLasInBatches(o.workspace / "cloud.las", [&](CrsCloud&& batch) { tiles.Add(batch.xyz, batch.rgb); });
+  tiles.Finish();
+  if (tiles.count() == 0) {
+    tiles.Remove();
+    throw InvalidArgument((o.workspace / "cloud.las").string() + ": no points");
+  }
+  const CloudProducts made = WriteCloudProducts(tiles, {}, {}, products, StageProgress(o, "dem"));
+  tiles.Remove();
   json info;
-  WriteDsm(cloud.xyz, g.crs, resolution, o, report.value("status", ""), dense.value("heights", ""), path, &info);
+  WriteDsmRaster(made.dsm, made.dsm_summary, resolution, o, report.value("status", ""), dense.value("heights", ""),
+                 path, &info);
   Log(o, "dem: " + path.string() + " " + std::to_string(info["width"].get<int>()) + " x " +
              std::to_string(info["height"].get<int>()) + " cells, " +
              std::to_string(100.0 * info["filled_fraction"].get<double>()) + " % with data");
