@@ -31,6 +31,9 @@ bool peak_is_the_stages = false;  // the last BeginStage restarted the high-wate
 }  // namespace
 
 std::chrono::steady_clock::time_point BeginStage() {
+  // The heap's free pages back to the kernel first: what an earlier stage
+  // freed but glibc kept would otherwise count in this stage's peak.
+  ReleaseFreedMemory();
   peak_is_the_stages = ResetPeakRss();
   return std::chrono::steady_clock::now();
 }
