@@ -437,7 +437,7 @@ TEST_P(VarianceComponents, EstimatedComponentsMakeThePosteriorSigmasHonest) {
   EXPECT_LT(vce.z_rms, 1.25);
   // With the GPS holding the datum, one σ0² over everything is 3 times too
   // optimistic (30 seeds: 3.30 against 1.02 estimated).
-  if (!with_control) EXPECT_GT(stated.z_rms, 2.0);
+  if (!with_control) { EXPECT_GT(stated.z_rms, 2.0); }
 }
 INSTANTIATE_TEST_SUITE_P(Georeferencing, VarianceComponents, ::testing::Bool(),
                          [](const ::testing::TestParamInfo<bool>& info) {
@@ -784,7 +784,7 @@ TEST(Georeferencing, LocalFrameMatchesAnIndependentGaussNewton) {
   // Residuals are in the file's coordinates.
   for (const GroundPointResult& c : r.control) {
     for (const GroundPoint& p : control.points) {
-      if (p.name == c.name) EXPECT_LT((c.surveyed_crs - p.xyz).norm(), 1e-6);
+      if (p.name == c.name) { EXPECT_LT((c.surveyed_crs - p.xyz).norm(), 1e-6); }
     }
   }
 }
@@ -954,7 +954,7 @@ TEST(Georeferencing, EachFlightsGpsOffsetIsRecovered) {
     }
   }
   for (const CameraResult& c : r.cameras) {
-    if (c.has_prior) EXPECT_EQ(c.flight, c.name < std::next(gps.begin(), half)->first ? 0 : 1) << c.name;
+    if (c.has_prior) { EXPECT_EQ(c.flight, c.name < std::next(gps.begin(), half)->first ? 0 : 1) << c.name; }
   }
   // The GPS residuals (adjusted + offset − GPS) against their sigmas.
   const auto normalised_rms = [](const GeoreferenceReport& report) {

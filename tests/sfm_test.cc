@@ -411,7 +411,7 @@ TEST(IncrementalMapper, AFalseRegistrationIsCaughtByTheGpsWhenItHappens) {
   EXPECT_EQ(r.gps_deregistered, std::vector<std::string>{s.names[x]});
   std::printf("%s (truly %.0f m from %s): %s\n", s.names[x].c_str(), apart, s.names[y].c_str(), r.images[x].why_not.c_str());
   for (int i = 0; i < n; ++i) {
-    if (i != x) EXPECT_TRUE(r.images[i].registered) << s.names[i] << ": " << r.images[i].why_not;
+    if (i != x) { EXPECT_TRUE(r.images[i].registered) << s.names[i] << ": " << r.images[i].why_not; }
   }
 
   // GPS blunders on every third image of the untouched block.
@@ -456,7 +456,7 @@ TEST(IncrementalMapper, AFalseRegistrationInAnObliqueBlockIsCaughtThroughItsGimb
   EXPECT_NE(r.images[staged.x].why_not.find("m from its GPS position"), std::string::npos) << r.images[staged.x].why_not;
   EXPECT_EQ(r.gps_deregistered, std::vector<std::string>{s.names[staged.x]});
   for (int i = 0; i < n; ++i) {
-    if (i != staged.x) EXPECT_TRUE(r.images[i].registered) << s.names[i] << ": " << r.images[i].why_not;
+    if (i != staged.x) { EXPECT_TRUE(r.images[i].registered) << s.names[i] << ": " << r.images[i].why_not; }
   }
 }
 

@@ -65,7 +65,7 @@ nlohmann::json DistortionCurve(const Camera& camera) {
   const Eigen::Vector2d pp = camera.principal_point_px();
   if (!(f > 0.0) || camera.width <= 0 || camera.height <= 0) return curve;
   Eigen::Vector2d corner(0.0, 0.0);
-  for (const Eigen::Vector2d c : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(camera.width - 0.5, -0.5),
+  for (const Eigen::Vector2d& c : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(camera.width - 0.5, -0.5),
                                   Eigen::Vector2d(-0.5, camera.height - 0.5),
                                   Eigen::Vector2d(camera.width - 0.5, camera.height - 0.5)}) {
     if ((c - pp).norm() > corner.norm()) corner = c - pp;
