@@ -277,6 +277,39 @@ TEST(TiledCloud, ProductsEqualTheWholeCloudsAcrossEveryTileSeam) {
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "tiles"));
 }
 
+// A cloud that starts just past a tile's edge: the DSM's first column of
+// cells has its centres in the tile to the west, which holds none of the
+// cloud's points, only its halo. That tile still owns those cells.
+TEST(TiledCloud, CellsCentredInATileWithoutPointsOfItsOwnAreSet) {
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Eigen::Vector3d> xyz;
+  for (int i = 0; i < 20000; ++i) {
+    // 10 m tiles; x from 10.01 m: with 0.15 m cells the grid starts at 9.9.
+    const double x = kX0 + 10.01 + 4.0 * u(rng), y = kY0 + 10.01 + 4.0 * u(rng);
+    xyz.emplace_back(x, y, Terrain(x, y) + 0.01 * u(rng));
+  }
+  CloudProductOptions o;
+  o.dsm.resolution_m = 0.15;
+  o.raster_wkt = Crs::FromString("EPSG:32632").Wkt();
+  testing::TempDir dir;
+  TiledCloud tiles(dir.path() / "tiles", 10.0, CloudProductsHalo(o));
+  tiles.Add(xyz, {});
+  tiles.Finish();
+  const CloudProducts tiled = WriteCloudProducts(tiles, {}, {}, o);
+  const Raster whole = RasterizeDsm(xyz, o.raster_wkt, o.dsm);
+  ASSERT_EQ(tiled.dsm.values.size(), whole.values.size());
+  ASSERT_LT(whole.geotransform[0], kX0 + 10.0);  // the case at hand: a column centred west of the edge
+  size_t differ = 0;
+  for (size_t k = 0; k < whole.values.size(); ++k) differ += tiled.dsm.values[k] != whole.values[k];
+  EXPECT_EQ(differ, 0u);
+  ASSERT_TRUE(tiled.has_dtm);
+  const Raster dtm = RasterizeDtm(xyz, ClassifyGround(xyz, o.ground), whole);
+  differ = 0;
+  for (size_t k = 0; k < dtm.values.size(); ++k) differ += tiled.dtm.values[k] != dtm.values[k];
+  EXPECT_EQ(differ, 0u);
+}
+
 // Contours through OGR: CRS, attributes, index lines, smoothing.
 struct ReadContours {
   std::vector<double> elevations;

@@ -121,7 +121,9 @@ void TiledCloud::Add(const std::vector<Eigen::Vector3d>& xyz, const std::vector<
 void TiledCloud::Finish() {
   for (auto& [key, b] : buffers_) {
     FlushTile(key.first, key.second, &b, 0);
-    if (b.own_count > 0) tiles_.push_back(key);  // a halo alone is no tile
+    // A tile with a halo alone still owns the cells centred in it whose
+    // points lie across its edge (a cloud starting just past a tile's edge).
+    tiles_.push_back(key);
   }
   buffers_.clear();
   std::sort(tiles_.begin(), tiles_.end(),
