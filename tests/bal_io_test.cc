@@ -200,7 +200,7 @@ TEST(BalProblems, SharedProblemsReachTheCeresReferenceCosts) {
       // of the reference's printed digits unless converged further.
       EXPECT_LT(summary.final_cost, 1.001 * ref.final_cost) << what;
       EXPECT_GT(summary.final_cost, 0.99 * ref.final_cost) << what;
-      if (run.gap == 0.0) EXPECT_LT(summary.final_cost, 1.00001 * ref.final_cost) << what;
+      if (run.gap == 0.0) { EXPECT_LT(summary.final_cost, 1.00001 * ref.final_cost) << what; }
     }
   }
 }
