@@ -16,6 +16,20 @@ unsigned ThreadCount(int requested) {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
+namespace {
+
+// worker() on min(threads, n) threads, the calling thread one of them; returns
+// once all have finished.
+void RunWorkers(unsigned threads, std::size_t n, const std::function<void()>& worker) {
+  const unsigned count = static_cast<unsigned>(std::min<std::size_t>(std::max(1u, threads), std::max<std::size_t>(n, 1)));
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < count; ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+}
+
+}  // namespace
+
 void ParallelFor(std::size_t n, unsigned threads, const std::function<void(std::size_t)>& body) {
   std::atomic<std::size_t> next{0};
   std::atomic<bool> failed{false};
@@ -32,11 +46,7 @@ void ParallelFor(std::size_t n, unsigned threads, const std::function<void(std::
       }
     }
   };
-  const unsigned count = static_cast<unsigned>(std::min<std::size_t>(std::max(1u, threads), std::max<std::size_t>(n, 1)));
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < count; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+  RunWorkers(threads, n, worker);
   if (first) std::rethrow_exception(first);
 }
 
@@ -92,11 +102,7 @@ void ParallelForInOrder(std::size_t n, unsigned threads, const std::function<voi
       emitting = false;
     }
   };
-  const unsigned count = static_cast<unsigned>(std::min<std::size_t>(std::max(1u, threads), std::max<std::size_t>(n, 1)));
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < count; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+  RunWorkers(threads, n, worker);
   if (first) std::rethrow_exception(first);
 }
 
