@@ -112,6 +112,51 @@ TEST(BundleAdjuster, GpsPriorsAnchorTheDatum) {
   EXPECT_LT(rms, 0.12);
 }
 
+// A local adjustment (the mapper's, after each registration): one image
+// displaced from the truth varies, every other is held. The held poses must
+// not move at all (they hold the datum: no gauge is restored), and the
+// displaced image must come back to the truth within what its few hundred
+// 0.5 px rays allow.
+TEST(BundleAdjuster, HeldPosesStayPutAndHoldTheDatumOfALocalAdjustment) {
+  const SyntheticSurveyOptions o = SmallSurvey(15);
+  const SyntheticSurvey survey = MakeSyntheticSurvey(o);
+  SparseModel model = survey.observed;
+  for (size_t i = 0; i < model.images.size(); ++i) model.images[i].pose = survey.truth.images[i].pose;
+  const int moved = static_cast<int>(model.images.size()) / 2;
+  Pose& pose = model.images[moved].pose;
+  pose.centre_in_world += Eigen::Vector3d(0.6, -0.4, 0.5);
+  pose.cam_from_world = (pose.cam_from_world * Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitX())).normalized();
+  const SparseModel before = model;
+
+  BundleOptions options;
+  options.refine_intrinsics = IntrinsicsRefinement::kNone;
+  options.loss = LossType::kHuber;
+  options.held_poses.assign(model.images.size(), 1);
+  options.held_poses[moved] = 0;
+  const BundleSummary summary = AdjustBundle(&model, options);
+  SCOPED_TRACE(summary.BriefReport());
+  EXPECT_NE(summary.gauge.find("held fixed (a local adjustment)"), std::string::npos);
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    if (static_cast<int>(i) == moved) continue;
+    EXPECT_EQ(model.images[i].pose.centre_in_world, before.images[i].pose.centre_in_world) << i;
+    EXPECT_EQ(model.images[i].pose.cam_from_world.coeffs(), before.images[i].pose.cam_from_world.coeffs()) << i;
+  }
+  const double error = (model.images[moved].pose.centre_in_world -
+                        survey.truth.images[moved].pose.centre_in_world).norm();
+  EXPECT_GT(error, 1e-5);  // the pixel noise leaves some
+  EXPECT_LT(error, 0.05);  // of the 0.88 m displacement
+  EXPECT_LT(model.images[moved].pose.cam_from_world.angularDistance(survey.truth.images[moved].pose.cam_from_world),
+            0.1 * 0.01);
+  EXPECT_LT(summary.final_rms_px, 1.1 * o.pixel_noise_px * std::sqrt(2.0));
+
+  // One held image cannot hold scale: the usual gauge is chosen instead.
+  SparseModel single = before;
+  options.held_poses.assign(single.images.size(), 0);
+  options.held_poses[0] = 1;
+  const BundleSummary one = AdjustBundle(&single, options);
+  EXPECT_EQ(one.gauge.find("held fixed (a local adjustment)"), std::string::npos) << one.gauge;
+}
+
 TEST(BundleAdjuster, RejectsGrossOutliersAndSolvesAgain) {
   const SyntheticSurveyOptions o = SmallSurvey(13);
   SparseModel model = MakeSyntheticSurvey(o).observed;

@@ -993,6 +993,8 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   if (precision_pass) {
     if (config.AnyMerged()) {
       result.posterior.note = "not computed: images with a camera group of their own";
+    } else if (config.gauge == BundleGauge::kHeldImages) {
+      result.posterior.note = "not computed: images held fixed (a local adjustment)";
     } else if (config.gauge == BundleGauge::kFixedImage || config.gauge == BundleGauge::kFreeNetwork) {
       result.posterior.note = "not computed: no priors hold the datum (a fixed image and baseline do; the "
                               "precision would be relative to them)";

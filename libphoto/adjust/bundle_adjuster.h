@@ -120,6 +120,13 @@ struct BundleOptions {
   bool use_gps_priors = true;
   bool use_gcp_priors = true;
 
+  // Images whose pose (rotation and centre) is held at its value, by image
+  // index (nonzero holds; empty or short: the rest vary): a local
+  // adjustment's ring of neighbours around the images it refines. Without
+  // priors that fix the datum, two or more held images with distinct
+  // centres hold the gauge (BundleGauge::kHeldImages).
+  std::vector<char> held_poses;
+
   // A constant offset of every GPS position from its camera centre (GNSS
   // antenna or datum offset, e.g. altitudes in the wrong height reference),
   // estimated as one 3-vector shared by all GPS priors:

@@ -22,6 +22,7 @@ std::string ToString(BundleGauge gauge) {
     case BundleGauge::kFixedImage: return "fixed_image";
     case BundleGauge::kFreeNetwork: return "free_network";
     case BundleGauge::kHeldRotation: return "held_rotation";
+    case BundleGauge::kHeldImages: return "held_images";
   }
   return "?";
 }
@@ -78,10 +79,12 @@ bool BundleConfig::AnyMerged() const {
 }
 
 bool BundleConfig::HoldsRotationOf(int image) const {
+  if (image >= 0 && image < static_cast<int>(held.size()) && held[image]) return true;
   return image >= 0 && image == image_a && (gauge == BundleGauge::kFixedImage || gauge == BundleGauge::kHeldRotation);
 }
 
 bool BundleConfig::HoldsCentreOf(int image) const {
+  if (image >= 0 && image < static_cast<int>(held.size()) && held[image]) return true;
   return image >= 0 && image == image_a && gauge == BundleGauge::kFixedImage;
 }
 
@@ -98,6 +101,10 @@ std::string BundleConfig::Describe(const SparseModel& model, int num_gps, int nu
   if (gauge == BundleGauge::kPriors) {
     out << "datum from priors (" << num_gps << " GPS, " << num_gcp << " GCP); no parameter held fixed";
     if (offset_estimated) out << "; GPS offset estimated, translation from the GCPs";
+    return out.str();
+  }
+  if (gauge == BundleGauge::kHeldImages) {
+    out << std::count(held.begin(), held.end(), 1) << " images held fixed (a local adjustment); they hold the datum";
     return out.str();
   }
   if (image_a < 0) return "";
@@ -162,8 +169,21 @@ BundleConfig ConfigureBundle(const SparseModel& model, const BundleOptions& opti
       config.prior_positions.push_back(point.prior->position);
     }
   }
+  // Images the caller holds (only those taking part).
+  config.held.assign(num_images, 0);
+  std::vector<Eigen::Vector3d> held_centres;
+  for (size_t i = 0; i < num_images && i < options.held_poses.size(); ++i) {
+    if (!options.held_poses[i] || !config.image_used[i]) continue;
+    config.held[i] = 1;
+    held_centres.push_back(model.images[i].pose.centre_in_world);
+  }
+  const bool held_fix_datum = std::any_of(held_centres.begin(), held_centres.end(), [&](const Eigen::Vector3d& c) {
+    return (c - held_centres[0]).norm() > 1e-9 * (1.0 + c.norm());
+  });
   if (PriorsFixDatum(config.prior_positions)) {
     config.gauge = BundleGauge::kPriors;
+  } else if (held_fix_datum) {
+    config.gauge = BundleGauge::kHeldImages;
   } else {
     for (size_t i = 0; i < num_images && config.image_a < 0; ++i) {
       if (config.image_used[i]) config.image_a = static_cast<int>(i);

@@ -33,6 +33,10 @@ enum class BundleGauge {
   // scale when they hold two distinct positions, else the A–B baseline is
   // restored after the solve.
   kHeldRotation,
+  // No priors fix the datum, but two or more images with distinct centres
+  // are held by the caller (BundleOptions::held_poses): they hold position,
+  // orientation and scale; nothing is restored.
+  kHeldImages,
 };
 
 std::string ToString(BundleGauge gauge);
@@ -56,6 +60,9 @@ struct BundleConfig {
   int image_b = -1;             // the far end of the baseline from A
   double baseline_m = 0.0;      // |C_B − C_A| before the solve
   bool restore_scale = false;   // the baseline A–B is restored after the solve
+
+  // Per image: its pose held at its value (BundleOptions::held_poses).
+  std::vector<char> held;
 
   // Per camera group: the intrinsic parameters that vary (sorted indices).
   std::vector<std::vector<int>> refined;
