@@ -265,7 +265,26 @@ SyntheticMatches MakeMatches(std::uint32_t seed, double pixel_noise_px, double g
   return out;
 }
 
-TEST(IncrementalMapper, RegistersEveryImageOfASyntheticBlockToTheNoiseLevel) {
+// The mapper's schedules of adjustment, each of which must reach the noise:
+// the default (local adjustments, a global one every 25 % of growth); no
+// local adjustments; rare global ones with intermediate ones solved
+// iteratively (the large-block path, here from 8 images).
+struct AdjustmentSchedule {
+  const char* name;
+  int local_adjust_images;
+  double global_adjust_growth;
+  int iterative_above_images;
+};
+
+class MapperSchedules : public ::testing::TestWithParam<AdjustmentSchedule> {};
+
+INSTANTIATE_TEST_SUITE_P(IncrementalMapper, MapperSchedules,
+                         ::testing::Values(AdjustmentSchedule{"default", 6, 0.25, 250},
+                                           AdjustmentSchedule{"global_only", 0, 0.25, 250},
+                                           AdjustmentSchedule{"local_iterative", 6, 1.0, 8}),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+TEST_P(MapperSchedules, RegistersEveryImageOfASyntheticBlockToTheNoiseLevel) {
   const double noise_px = 0.5;
   const SyntheticMatches s = MakeMatches(7, noise_px);
   ASSERT_GT(s.names.size(), 10u);
@@ -274,8 +293,18 @@ TEST(IncrementalMapper, RegistersEveryImageOfASyntheticBlockToTheNoiseLevel) {
   const std::vector<int> camera_of_image(s.names.size(), 0);
   MapperOptions options;
   options.num_threads = 2;
+  options.local_adjust_images = GetParam().local_adjust_images;
+  options.global_adjust_growth = GetParam().global_adjust_growth;
+  options.iterative_above_images = GetParam().iterative_above_images;
   const MapperResult result =
       ReconstructIncremental(s.names, camera_of_image, {start}, s.features, s.matches, options);
+  // Local adjustments run between the global ones (from the ninth image on)
+  // exactly when asked for.
+  if (options.local_adjust_images > 0) {
+    EXPECT_GT(result.local_adjustments, 0);
+  } else {
+    EXPECT_EQ(result.local_adjustments, 0);
+  }
 
   int registered = 0;
   for (const ImageRegistration& r : result.images) registered += r.registered;

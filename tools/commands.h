@@ -14,6 +14,7 @@
 #include "georef/gps_fix.h"
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/adjust/georeferencing.h"
+#include "libphoto/sfm/incremental_mapper.h"
 #include "tools/tool_context.h"
 
 namespace aerotri {
@@ -156,6 +157,9 @@ struct RunArgs {
   int max_dimension = 1600;
   int max_features = 12000;
   int gps_neighbours = 12;
+  int local_ba_images = MapperOptions().local_adjust_images;
+  double global_ba_growth = MapperOptions().global_adjust_growth;
+  int iterative_ba_above = MapperOptions().iterative_above_images;
   std::string gcp;
   std::string checkpoints;
   std::string gcp_pixel_origin = "centre";

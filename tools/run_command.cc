@@ -83,6 +83,7 @@ enum OptionGroup : unsigned {
   kThreadsOption = 1u << 5,
   kRunOnlyOptions = 1u << 6,  // what only the whole run does (--no-ortho)
   kOrthoOptions = 1u << 7,
+  kReconstructOptions = 1u << 8,
   kAllOptions = ~0u,
 };
 
@@ -136,6 +137,19 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
     cmd->add_option("--gps-neighbours", a->gps_neighbours, "Images matched with each image's nearest GPS neighbours")
         ->check(CLI::Range(1, 1000))->capture_default_str();
   }
+  if (groups & kReconstructOptions) {
+    cmd->add_option("--local-ba-images", a->local_ba_images,
+                    "Local bundle adjustment after each registration: the new image and its most connected "
+                    "neighbours, this many in all, vary (the images around them held); 0 = none")
+        ->check(CLI::Range(0, 1000))->capture_default_str();
+    cmd->add_option("--global-ba-growth", a->global_ba_growth,
+                    "Global bundle adjustment whenever the registered images have grown by this fraction")
+        ->check(CLI::Range(0.01, 10.0))->capture_default_str();
+    cmd->add_option("--iterative-ba-above", a->iterative_ba_above,
+                    "Intermediate global adjustments of models above this many images solve by conjugate "
+                    "gradients (the final one is always exact); 0 = never")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
+  }
   if (groups & kGeoreferenceOptions) {
     cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
     cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format); never used in the adjustment");
@@ -178,7 +192,8 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
       {"features", "Extract SIFT features of the ingested photos (OUTPUT/features/)", false,
        kFeatureOptions | kThreadsOption},
       {"match", "Select, match and verify image pairs (OUTPUT/matches.bin)", false, kMatchOptions | kThreadsOption},
-      {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false, kThreadsOption},
+      {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false,
+       kReconstructOptions | kThreadsOption},
       {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
                        "OUTPUT/report.json", false, kGeoreferenceOptions | kThreadsOption},
       {"dense", "Dense matching and the deliverables: OUTPUT/cloud.las (ground-classified), cloud.ply, dsm.tif, "
@@ -273,6 +288,9 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.features.max_dimension = a.max_dimension;
   o.features.max_features = a.max_features;
   o.matching.gps_neighbours = a.gps_neighbours;
+  o.mapper.local_adjust_images = a.local_ba_images;
+  o.mapper.global_adjust_growth = a.global_ba_growth;
+  o.mapper.iterative_above_images = a.iterative_ba_above;
   o.gcp = a.gcp;
   o.camera_file = a.policy.camera_file;
   o.checkpoints = a.checkpoints;

@@ -223,6 +223,9 @@ bool RunReconstructStage(const PipelineOptions& o) {
   doc.tracks = result.num_tracks;
   doc.dropped_inconsistent_tracks = result.dropped_inconsistent_tracks;
   doc.global_adjustments = result.global_adjustments;
+  doc.adjustment_s = result.adjustment_s;
+  doc.local_adjustments = result.local_adjustments;
+  doc.local_adjustment_s = result.local_adjustment_s;
   doc.registered = static_cast<int>(registered.images.size());
   doc.component_images = result.component_images;
   for (size_t i = 0; i < ingest.names.size(); ++i) {

@@ -213,7 +213,10 @@ nlohmann::json ReconstructFingerprint(const PipelineOptions& o) {
           {"init_min_median_angle_deg", m.init_min_median_angle_deg},
           {"init_candidates", m.init_candidates},
           {"gps_rescue", m.gps_rescue},
-          {"rescue_search_radius_px", m.rescue_search_radius_px}};
+          {"rescue_search_radius_px", m.rescue_search_radius_px},
+          {"local_adjust_images", m.local_adjust_images},
+          {"global_adjust_growth", m.global_adjust_growth},
+          {"iterative_above_images", m.iterative_above_images}};
 }
 
 namespace {
@@ -283,6 +286,9 @@ nlohmann::json ToJson(const ReconstructionRecord& r) {
           {"tracks", r.tracks},
           {"dropped_inconsistent_tracks", r.dropped_inconsistent_tracks},
           {"global_adjustments", r.global_adjustments},
+          {"adjustment_s", r.adjustment_s},
+          {"local_adjustments", r.local_adjustments},
+          {"local_adjustment_s", r.local_adjustment_s},
           {"registered", r.registered},
           {"component_images", r.component_images},
           {"images", images},
@@ -296,6 +302,9 @@ ReconstructionRecord ReconstructionRecordFromJson(const nlohmann::json& doc, con
   r.tracks = Field<int>(doc, "tracks", path);
   r.dropped_inconsistent_tracks = doc.value("dropped_inconsistent_tracks", 0);
   r.global_adjustments = doc.value("global_adjustments", 0);
+  r.adjustment_s = doc.value("adjustment_s", 0.0);
+  r.local_adjustments = doc.value("local_adjustments", 0);
+  r.local_adjustment_s = doc.value("local_adjustment_s", 0.0);
   r.registered = Field<int>(doc, "registered", path);
   r.component_images = doc.value("component_images", std::vector<int>{r.registered});
   for (const auto& im : Field<nlohmann::json>(doc, "images", path)) {

@@ -94,6 +94,9 @@ struct ReconstructionRecord {
   int tracks = 0;
   int dropped_inconsistent_tracks = 0;
   int global_adjustments = 0;
+  double adjustment_s = 0.0;  // wall time of the mapper's global adjustments
+  int local_adjustments = 0;
+  double local_adjustment_s = 0.0;
   int registered = 0;
   struct Image {
     std::string name;

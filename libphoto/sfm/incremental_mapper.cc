@@ -2,6 +2,7 @@
 #include "libphoto/sfm/incremental_mapper.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -35,6 +36,12 @@ void MapperOptions::Check() const {
   CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
   CheckOption(gps_check_m >= 0.0 && std::isfinite(gps_check_m), "mapper gps_check_m", gps_check_m,
               "0 (no check) or a distance in metres");
+  CheckOption(local_adjust_images >= 0, "mapper local_adjust_images", local_adjust_images,
+              "0 (no local adjustment) or a number of images");
+  CheckOption(global_adjust_growth > 0.0 && global_adjust_growth <= 10.0, "mapper global_adjust_growth",
+              global_adjust_growth, "a fraction of the registered images in (0, 10]");
+  CheckOption(iterative_above_images >= 0, "mapper iterative_above_images", iterative_above_images,
+              "0 (every adjustment exact) or a number of images");
 }
 
 namespace {
@@ -89,9 +96,11 @@ class Mapper {
     while (true) {
       const std::vector<int> candidates = NextImages();
       bool registered_one = false;
+      int registered_image = -1;
       for (int image : candidates) {
         if (Register(image)) {
           registered_one = true;
+          registered_image = image;
           Report();
           break;
         }
@@ -107,9 +116,11 @@ class Mapper {
         break;
       }
       const int n = NumRegistered();
-      if (n <= 8 || n >= last_ba + std::max(2, last_ba / 4)) {
+      if (n <= 8 || n >= last_ba + std::max(2, static_cast<int>(options_.global_adjust_growth * last_ba))) {
         GlobalAdjust(false);
         last_ba = n;
+      } else {
+        LocalAdjust(registered_image);
       }
     }
     if (options_.gps_rescue) {
@@ -130,6 +141,9 @@ class Mapper {
     result.model = std::move(model_);
     result.images = status_;
     result.global_adjustments = adjustments_;
+    result.adjustment_s = adjustment_s_;
+    result.local_adjustments = local_adjustments_;
+    result.local_adjustment_s = local_adjustment_s_;
     for (size_t i = 0; i < gps_strikes_.size(); ++i) {
       if (gps_strikes_[i] > 0) result.gps_deregistered.push_back(result.model.images[i].name);
     }
@@ -505,6 +519,105 @@ class Mapper {
     return false;
   }
 
+  // Local bundle adjustment after registering `image` (the scheme of
+  // COLMAP's mapper): it and the registered images sharing the most tie
+  // points with it vary, with every point they observe; the other images
+  // observing those points are held and hold the datum; intrinsics are held.
+  // Solved on a copy holding only that neighbourhood, so its cost does not
+  // grow with the model; observations it rejects are dropped here too.
+  void LocalAdjust(int image) {
+    const int window = options_.local_adjust_images;
+    if (window <= 1 || image < 0) return;
+    std::map<int, int> shared;  // registered image -> tie points shared with `image`
+    for (size_t f = 0; f < tracks_.track_of[image].size(); ++f) {
+      const int t = tracks_.track_of[image][f];
+      if (t < 0 || point_of_track_[t] < 0) continue;
+      for (const TrackElement& e : tracks_.tracks[t]) {
+        if (e.image != image && model_.images[e.image].registered) ++shared[e.image];
+      }
+    }
+    std::vector<std::pair<int, int>> ranked;
+    for (const auto& [other, count] : shared) ranked.push_back({count, other});
+    std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first > b.first : a.second < b.second;
+    });
+    std::vector<char> adjusted(model_.images.size(), 0);
+    adjusted[image] = 1;
+    for (size_t k = 0; k < ranked.size() && static_cast<int>(k) + 1 < window; ++k) adjusted[ranked[k].second] = 1;
+    std::vector<char> local_point(model_.points.size(), 0);
+    for (const Observation& obs : model_.observations) {
+      if (adjusted[obs.image]) local_point[obs.point] = 1;
+    }
+    // The neighbourhood as a model of its own.
+    SparseModel local;
+    local.cameras = model_.cameras;
+    std::vector<int> image_to_local(model_.images.size(), -1), point_to_local(model_.points.size(), -1);
+    std::vector<int> image_of_local, point_of_local;
+    std::vector<size_t> observation_of_local;
+    for (size_t k = 0; k < model_.observations.size(); ++k) {
+      Observation obs = model_.observations[k];
+      if (!local_point[obs.point] || !model_.images[obs.image].registered) continue;
+      if (image_to_local[obs.image] < 0) {
+        image_to_local[obs.image] = static_cast<int>(local.images.size());
+        local.images.push_back(model_.images[obs.image]);
+        image_of_local.push_back(obs.image);
+      }
+      if (point_to_local[obs.point] < 0) {
+        point_to_local[obs.point] = static_cast<int>(local.points.size());
+        local.points.push_back(model_.points[obs.point]);
+        point_of_local.push_back(obs.point);
+      }
+      obs.image = image_to_local[obs.image];
+      obs.point = point_to_local[obs.point];
+      local.observations.push_back(obs);
+      observation_of_local.push_back(k);
+    }
+    BundleOptions o;
+    o.held_poses.assign(local.images.size(), 0);
+    int held = 0;
+    for (size_t li = 0; li < local.images.size(); ++li) {
+      o.held_poses[li] = !adjusted[image_of_local[li]];
+      held += o.held_poses[li];
+    }
+    if (held < 2) return;  // nothing around it to hold the datum (a small model: the global one runs)
+    o.loss = LossType::kHuber;
+    o.loss_scale_px = 1.0;
+    o.outlier_threshold_px = options_.max_reprojection_px;
+    o.max_outlier_rounds = 1;
+    o.max_iterations = 25;
+    o.refine_intrinsics = IntrinsicsRefinement::kNone;
+    o.compute_diagnostics = false;
+    o.num_threads = options_.num_threads;
+    const auto start = std::chrono::steady_clock::now();
+    AdjustBundle(&local, o);
+    local_adjustment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ++local_adjustments_;
+    for (size_t li = 0; li < local.images.size(); ++li) {
+      if (!o.held_poses[li]) model_.images[image_of_local[li]].pose = local.images[li].pose;
+    }
+    for (size_t lp = 0; lp < local.points.size(); ++lp) model_.points[point_of_local[lp]].position = local.points[lp].position;
+    if (local.observations.size() == observation_of_local.size()) return;
+    // The adjustment keeps the surviving observations in order: walk both.
+    std::vector<char> drop(model_.observations.size(), 0);
+    size_t kept = 0;
+    for (size_t k = 0; k < observation_of_local.size(); ++k) {
+      const Observation& original = model_.observations[observation_of_local[k]];
+      if (kept < local.observations.size() && image_of_local[local.observations[kept].image] == original.image &&
+          point_of_local[local.observations[kept].point] == original.point &&
+          local.observations[kept].keypoint == original.keypoint) {
+        ++kept;
+      } else {
+        drop[observation_of_local[k]] = 1;
+      }
+    }
+    std::vector<Observation> observations;
+    observations.reserve(model_.observations.size());
+    for (size_t k = 0; k < model_.observations.size(); ++k) {
+      if (!drop[k]) observations.push_back(model_.observations[k]);
+    }
+    model_.observations.swap(observations);
+  }
+
   void GlobalAdjust(bool final_round) {
     BundleOptions o;
     o.loss = LossType::kHuber;
@@ -524,7 +637,12 @@ class Mapper {
     }
     o.min_images_to_refine_intrinsics = 3;
     o.focal_prior_px = options_.focal_prior_px;
+    if (!final_round && options_.iterative_above_images > 0 && n > options_.iterative_above_images) {
+      o.linear_solver = LinearSolverChoice::kIterativeSchur;
+    }
+    const auto start = std::chrono::steady_clock::now();
     AdjustBundle(&model_, o);
+    adjustment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ++adjustments_;
     DeregisterAgainstGps();
     // Points left with fewer than two observations are dropped (their tracks
@@ -651,6 +769,9 @@ class Mapper {
   std::vector<std::optional<Eigen::Vector3d>> gps_;
   std::map<std::string, GimbalAttitude> gimbal_;  // by image name
   int adjustments_ = 0;
+  double adjustment_s_ = 0.0;
+  int local_adjustments_ = 0;
+  double local_adjustment_s_ = 0.0;
 };
 
 // The similarity from a model's frame to the GPS frame: robust over the

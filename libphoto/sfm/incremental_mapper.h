@@ -8,10 +8,12 @@
 //  2. repeatedly the unregistered image that sees the most triangulated
 //     tracks is registered by PnP RANSAC (P3P), its new tracks are
 //     triangulated with angle and reprojection checks;
-//  3. global bundle adjustment (robust loss, outlier rejection) whenever the
-//     model has grown by a quarter, self-calibrating focal length and radial
-//     distortion once enough images are in, then again at the end with every
-//     intrinsic parameter.
+//  3. a local bundle adjustment around each new image (it and its most
+//     connected neighbours vary, the images around them held), and a global
+//     one (robust loss, outlier rejection) whenever the model has grown by a
+//     set fraction, self-calibrating focal length and radial distortion once
+//     enough images are in, then again at the end with every intrinsic
+//     parameter.
 // Images that fail are retried after each adjustment. Images still left out
 // but with a GPS position are then rescued by guided matching: the model is
 // related to the GPS frame by a robust similarity, the image's pose predicted
@@ -69,6 +71,21 @@ struct MapperOptions {
   // Horizontal distance (m) beyond which a registered image disagrees with
   // its GPS position (see the header); 0: no check.
   double gps_check_m = 25.0;
+  // Intermediate global adjustments of a model with more registered images
+  // than this solve the normal equations by conjugate gradients on the
+  // Schur complement (Schur-Jacobi preconditioner) instead of a sparse
+  // Cholesky factorisation: they only have to hold the growing model
+  // together, and an exact solve's cost per image grows with the block.
+  // The final adjustment is always exact. 0: every adjustment exact.
+  int iterative_above_images = 250;
+  // Local adjustment after each registration: the new image and the
+  // registered images sharing the most tie points with it (this many in
+  // all) vary with every point they see, the other images seeing those
+  // points held; intrinsics held. 0: none.
+  int local_adjust_images = 6;
+  // A global adjustment runs whenever the registered images have grown by
+  // this fraction since the last one (and while the model is small).
+  double global_adjust_growth = 0.25;
 
   int num_threads = 0;
   // Focal-length priors per camera group (see BundleOptions).
@@ -93,6 +110,9 @@ struct MapperResult {
   int dropped_inconsistent_tracks = 0;
   std::string initial_pair;
   int global_adjustments = 0;
+  double adjustment_s = 0.0;  // wall time spent in the global adjustments
+  int local_adjustments = 0;
+  double local_adjustment_s = 0.0;
   // Images de-registered because their pose disagreed with their GPS
   // position (each named in images[i].why_not while left out).
   std::vector<std::string> gps_deregistered;
