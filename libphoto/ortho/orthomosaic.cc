@@ -411,7 +411,7 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     cv::dilate(own, widened, band);
     widened &= v.valid > 0;
     seam_views.push_back(static_cast<int>(k));
-    seam_images.push_back(v.colour.getUMat(cv::ACCESS_READ).clone());
+    seam_images.push_back(v.colour.getUMat(cv::ACCESS_READ));  // a view of the rendering, not a copy
     seam_masks.push_back(widened.getUMat(cv::ACCESS_READ).clone());
     corners.push_back(v.bbox.tl());
   }
@@ -455,13 +455,13 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     const std::vector<cv::Scalar> gains = compensator.gains();
     for (size_t s = 0; s < seam_views.size() && s < gains.size(); ++s) views[seam_views[s]].gain = gains[s];
   }
-  // The coarse renderings have done their work.
+  // The coarse renderings have done their work (the views of them first).
+  seam_images.clear();
+  seam_masks.clear();
   for (View& v : views) {
     v.colour.release();
     v.cosine.release();
   }
-  seam_images.clear();
-  seam_masks.clear();
 
   // Output: an RGBA GeoTIFF written tile by tile.
   GDALAllRegister();
