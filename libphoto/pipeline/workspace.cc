@@ -215,6 +215,7 @@ nlohmann::json ReconstructFingerprint(const PipelineOptions& o) {
           {"gps_rescue", m.gps_rescue},
           {"rescue_search_radius_px", m.rescue_search_radius_px},
           {"local_adjust_images", m.local_adjust_images},
+          {"local_adjust_iterations", m.local_adjust_iterations},
           {"global_adjust_growth", m.global_adjust_growth},
           {"iterative_above_images", m.iterative_above_images}};
 }

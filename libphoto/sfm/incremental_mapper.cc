@@ -38,6 +38,8 @@ void MapperOptions::Check() const {
               "0 (no check) or a distance in metres");
   CheckOption(local_adjust_images >= 0, "mapper local_adjust_images", local_adjust_images,
               "0 (no local adjustment) or a number of images");
+  CheckOption(local_adjust_iterations >= 1, "mapper local_adjust_iterations", local_adjust_iterations,
+              "at least 1 solver iteration");
   CheckOption(global_adjust_growth > 0.0 && global_adjust_growth <= 10.0, "mapper global_adjust_growth",
               global_adjust_growth, "a fraction of the registered images in (0, 10]");
   CheckOption(iterative_above_images >= 0, "mapper iterative_above_images", iterative_above_images,
@@ -580,11 +582,12 @@ class Mapper {
       held += o.held_poses[li];
     }
     if (held < 2) return;  // nothing around it to hold the datum (a small model: the global one runs)
+    // One solve of a few iterations: the neighbourhood starts close (PnP and
+    // triangulation) and the next global adjustment finishes the job.
     o.loss = LossType::kHuber;
     o.loss_scale_px = 1.0;
-    o.outlier_threshold_px = options_.max_reprojection_px;
-    o.max_outlier_rounds = 1;
-    o.max_iterations = 25;
+    o.max_iterations = options_.local_adjust_iterations;
+    o.function_tolerance = 1e-4;
     o.refine_intrinsics = IntrinsicsRefinement::kNone;
     o.compute_diagnostics = false;
     o.num_threads = options_.num_threads;
@@ -596,20 +599,15 @@ class Mapper {
       if (!o.held_poses[li]) model_.images[image_of_local[li]].pose = local.images[li].pose;
     }
     for (size_t lp = 0; lp < local.points.size(); ++lp) model_.points[point_of_local[lp]].position = local.points[lp].position;
-    if (local.observations.size() == observation_of_local.size()) return;
-    // The adjustment keeps the surviving observations in order: walk both.
+    // Observations the adjusted neighbourhood cannot explain are dropped
+    // (without a second solve).
+    const std::vector<double> errors = ReprojectionErrors(local);
     std::vector<char> drop(model_.observations.size(), 0);
-    size_t kept = 0;
-    for (size_t k = 0; k < observation_of_local.size(); ++k) {
-      const Observation& original = model_.observations[observation_of_local[k]];
-      if (kept < local.observations.size() && image_of_local[local.observations[kept].image] == original.image &&
-          point_of_local[local.observations[kept].point] == original.point &&
-          local.observations[kept].keypoint == original.keypoint) {
-        ++kept;
-      } else {
-        drop[observation_of_local[k]] = 1;
-      }
+    bool any = false;
+    for (size_t k = 0; k < errors.size(); ++k) {
+      if (!(errors[k] <= options_.max_reprojection_px)) drop[observation_of_local[k]] = any = true;
     }
+    if (!any) return;
     std::vector<Observation> observations;
     observations.reserve(model_.observations.size());
     for (size_t k = 0; k < model_.observations.size(); ++k) {

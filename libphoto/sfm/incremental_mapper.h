@@ -8,9 +8,9 @@
 //  2. repeatedly the unregistered image that sees the most triangulated
 //     tracks is registered by PnP RANSAC (P3P), its new tracks are
 //     triangulated with angle and reprojection checks;
-//  3. a local bundle adjustment around each new image (it and its most
-//     connected neighbours vary, the images around them held), and a global
-//     one (robust loss, outlier rejection) whenever the model has grown by a
+//  3. optionally a local bundle adjustment around each new image (it and
+//     its most connected neighbours vary, the images around them held), and
+//     a global one (robust loss, outlier rejection) whenever the model has grown by a
 //     set fraction, self-calibrating focal length and radial distortion once
 //     enough images are in, then again at the end with every intrinsic
 //     parameter.
@@ -76,13 +76,18 @@ struct MapperOptions {
   // Schur complement (Schur-Jacobi preconditioner) instead of a sparse
   // Cholesky factorisation: they only have to hold the growing model
   // together, and an exact solve's cost per image grows with the block.
-  // The final adjustment is always exact. 0: every adjustment exact.
-  int iterative_above_images = 250;
+  // The final adjustment is always exact. 0: every adjustment exact (the
+  // default: at 513 photos the iterative solves took 4 % longer,
+  // bench/README.md).
+  int iterative_above_images = 0;
   // Local adjustment after each registration: the new image and the
   // registered images sharing the most tie points with it (this many in
   // all) vary with every point they see, the other images seeing those
-  // points held; intrinsics held. 0: none.
-  int local_adjust_images = 6;
+  // points held; intrinsics held. 0: none (the default: at 513 photos they
+  // cut the global adjustments' time by a third, and cost as much again;
+  // bench/README.md).
+  int local_adjust_images = 0;
+  int local_adjust_iterations = 6;  // solver iterations of a local adjustment
   // A global adjustment runs whenever the registered images have grown by
   // this fraction since the last one (and while the model is small).
   double global_adjust_growth = 0.25;
