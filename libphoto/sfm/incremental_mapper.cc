@@ -529,7 +529,7 @@ class Mapper {
   // grow with the model; observations it rejects are dropped here too.
   void LocalAdjust(int image) {
     const int window = options_.local_adjust_images;
-    if (window <= 1 || image < 0) return;
+    if (window <= 0 || image < 0) return;
     std::map<int, int> shared;  // registered image -> tie points shared with `image`
     for (size_t f = 0; f < tracks_.track_of[image].size(); ++f) {
       const int t = tracks_.track_of[image][f];
