@@ -308,6 +308,83 @@ TEST(DenseFusion, TiledDepthMapsFuseToTheSameCloud) {
   EXPECT_THROW(FuseDepthMaps(tiled, res, o, &s_tiled), IoError);
 }
 
+// The dense work in shares, as a split workflow's jobs run it (the depth
+// maps in 3 shares, then the fusion in 3): the shares' tiles, in share
+// order, are the cloud of one ComputeDenseCloud, point for point.
+TEST(DenseShares, DepthAndFusionInSharesGiveTheSameCloudAsOneRun) {
+  SyntheticSurveyOptions so;
+  so.seed = 5;
+  so.area_width_m = 60.0;
+  so.area_height_m = 45.0;
+  so.flight_height_m = 50.0;
+  so.width = 320;
+  so.height = 240;
+  so.brown_params = {240.0, 161.0, 119.0, -0.08, 0.05, -0.01, 0.0005, -0.0003};
+  so.num_tie_points = 1500;
+  const SparseModel model = MakeSyntheticSurvey(so).truth;
+  ASSERT_GE(model.images.size(), 8u);
+  RenderOptions render;
+  render.relief_m = so.relief_m;
+  std::map<int, cv::Mat> images;
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    images[static_cast<int>(i)] = RenderImage(model.cameras[model.images[i].camera], model.images[i].pose, render);
+  }
+  auto load = [&](int i) { return images.at(i).clone(); };
+  testing::TempDir dir;
+  DenseOptions o;
+  o.resolution_m = 0.4;
+  o.tile_voxels = 32;  // 12.8 m: several fusion tiles over the block
+  o.work_dir = dir.path() / "whole";
+  DenseSummary whole_summary;
+  const DenseCloud whole = ComputeDenseCloud(model, load, o, nullptr, &whole_summary);
+  std::printf("%zu images, %d pairs, %zu points in %d tiles\n", model.images.size(), whole_summary.pairs,
+              whole.positions.size(), whole_summary.tiles);
+  ASSERT_GT(whole.positions.size(), 10000u);
+  ASSERT_GE(whole_summary.tiles, 6);
+
+  o.work_dir = dir.path() / "shared";
+  constexpr int kShares = 3;
+  DenseSummary depth;
+  for (int k = 0; k < kShares; ++k) {
+    DenseSummary s;
+    ComputeDepthMaps(model, load, o, DenseShare{k, kShares}, nullptr, &s);
+    EXPECT_GT(s.pairs, 0) << "share " << k;
+    depth.pairs += s.pairs;
+    depth.pairs_failed += s.pairs_failed;
+    depth.depth_points += s.depth_points;
+  }
+  EXPECT_EQ(depth.pairs, whole_summary.pairs);
+  EXPECT_EQ(depth.pairs_failed, whole_summary.pairs_failed);
+  EXPECT_EQ(depth.depth_points, whole_summary.depth_points);
+  DenseCloud shared;
+  int tiles = 0;
+  std::vector<long long> points_of_share;
+  for (int k = 0; k < kShares; ++k) {
+    DenseSummary s;
+    FusedTileSink sink;
+    sink.consume = [&](DenseCloud&& part) {
+      shared.positions.insert(shared.positions.end(), part.positions.begin(), part.positions.end());
+      shared.colours.insert(shared.colours.end(), part.colours.begin(), part.colours.end());
+      shared.views.insert(shared.views.end(), part.views.begin(), part.views.end());
+    };
+    FuseModelDepthMaps(model, o, DenseShare{k, kShares}, nullptr, sink, &s);
+    tiles += s.tiles;
+    points_of_share.push_back(s.fused_points);
+  }
+  EXPECT_EQ(tiles, whole_summary.tiles);
+  // Balanced by their depth points: no share is empty or holds nearly all.
+  for (long long n : points_of_share) {
+    EXPECT_GT(n, static_cast<long long>(whole.positions.size()) / (3 * kShares));
+    EXPECT_LT(n, static_cast<long long>(whole.positions.size()) * 2 / kShares);
+  }
+  ASSERT_EQ(shared.positions.size(), whole.positions.size());
+  for (size_t k = 0; k < whole.positions.size(); ++k) {
+    ASSERT_EQ(shared.positions[k], whole.positions[k]) << k;
+    ASSERT_EQ(shared.colours[k], whole.colours[k]) << k;
+  }
+  EXPECT_THROW(ComputeDepthMaps(model, load, o, DenseShare{3, 3}, nullptr, nullptr), InvalidArgument);
+}
+
 TEST(ParallelFor, RunsEveryIndexOnce) {
   std::vector<std::atomic<int>> hits(1000);
   ParallelFor(hits.size(), 2, [&](size_t k) { ++hits[k]; });

@@ -2,7 +2,9 @@
 // A survey split into 4 parts, each reconstructed on its own, merged and
 // adjusted once, run end to end by Snakemake's local executor: every photo
 // registered once, the seams invisible (check-point RMSE within 1.2x of the
-// unsplit run's, no step between the parts' areas in the DSM above a GSD).
+// unsplit run's, no step between the parts' areas in the DSM above a GSD);
+// the dense stage in shares (4 jobs of depth maps, 4 of fusion) gives the
+// DSM the dense stage gives in one process.
 // Skipped (visibly) where snakemake is not installed.
 #include <gtest/gtest.h>
 
@@ -104,6 +106,36 @@ TEST(SplitWorkflow, FourPartsUnderSnakemakeMatchTheUnsplitSurvey) {
     ASSERT_GT(q.size(), 1000u);
     EXPECT_LT(std::abs(median(q)), gsd) << "median split - whole " << median(q) << " m, GSD " << gsd << " m";
   }
+
+  // The dense stage ran as 4 jobs of depth maps, then 4 of fusion, then one
+  // of deliverables; its scratch is gone, and a second snakemake has
+  // nothing to do (the records were temp files).
+  const json dense = json::parse(ReadTextFile(s.workspace / "dense.json"));
+  EXPECT_GT(dense["points"].get<long long>(), 100000) << dense;
+  EXPECT_FALSE(fs::exists(s.workspace / "depth"));
+  for (int k = 1; k <= 4; ++k) {
+    const std::string share = std::to_string(k) + "_of_4";
+    EXPECT_FALSE(fs::exists(s.workspace / "dense_parts" / ("fused_" + share + ".pts"))) << share;
+    EXPECT_FALSE(fs::exists(s.workspace / "dense_parts" / ("fused_" + share + ".json"))) << share;
+  }
+  const std::string again = "cd '" + s.workspace.string() + "' && snakemake --cores 2 -n > again.log 2>&1";
+  ASSERT_EQ(std::system(again.c_str()), 0) << ReadTextFile(s.workspace / "again.log");
+  EXPECT_NE(ReadTextFile(s.workspace / "again.log").find("Nothing to be done"), std::string::npos)
+      << ReadTextFile(s.workspace / "again.log");
+  // The shares' DSM is the one dense stage in one process makes from the
+  // same model, cell for cell.
+  const Raster shared = ReadRaster(s.workspace / "dsm.tif");
+  PipelineOptions one = s;
+  one.force = true;
+  ASSERT_TRUE(RunDenseStage(one));
+  const Raster whole_stage = ReadRaster(s.workspace / "dsm.tif");
+  EXPECT_EQ(json::parse(ReadTextFile(s.workspace / "dense.json"))["points"], dense["points"]);
+  ASSERT_EQ(shared.width, whole_stage.width);
+  ASSERT_EQ(shared.height, whole_stage.height);
+  for (int k = 0; k < 6; ++k) EXPECT_EQ(shared.geotransform[k], whole_stage.geotransform[k]) << k;
+  size_t differ = 0;
+  for (size_t k = 0; k < shared.values.size(); ++k) differ += shared.values[k] != whole_stage.values[k] ? 1 : 0;
+  EXPECT_EQ(differ, 0u) << "of " << shared.values.size() << " cells";
 }
 
 }  // namespace

@@ -36,6 +36,23 @@ TEST(DirectoryLock, SecondHolderIsRefusedWithThePidUntilTheFirstLetsGo) {
   EXPECT_NO_THROW(DirectoryLock again(ws));  // released with its holder
 }
 
+// A split workflow's dense shares work in one workspace at once (shared),
+// and nothing exclusive (a run, a stage) starts beside them, nor they beside it.
+TEST(DirectoryLock, SharedHoldersCoexistButExcludeAnExclusiveOne) {
+  testing::TempDir dir;
+  const fs::path ws = dir.path() / "survey";
+  {
+    const DirectoryLock a(ws, DirectoryLock::Mode::kShared);
+    EXPECT_NO_THROW(DirectoryLock b(ws, DirectoryLock::Mode::kShared));
+    EXPECT_THROW(DirectoryLock exclusive(ws), Error);
+  }
+  {
+    const DirectoryLock exclusive(ws);
+    EXPECT_THROW(DirectoryLock shared(ws, DirectoryLock::Mode::kShared), Error);
+  }
+  EXPECT_NO_THROW(DirectoryLock shared(ws, DirectoryLock::Mode::kShared));
+}
+
 TEST(DirectoryLock, UncreatableFolderIsAnIoErrorNamingIt) {
   testing::TempDir dir;
   std::ofstream(dir.path() / "a_file") << "x";

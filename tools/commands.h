@@ -147,6 +147,10 @@ struct RunArgs {
   bool keep_going = false;
   bool keep_depth_maps = false;
   bool force = false;
+  // dense as a workflow's jobs: "K/N" (a share of the depth maps, of the
+  // fusion), or N (the deliverables from N fused shares); one at most.
+  std::string depth_share, fuse_share;
+  int from_shares = 0;
   int parts = 4;               // split
   double seam_margin_m = 0.0;  // split; 0: automatic
   int threads = 0;

@@ -177,6 +177,40 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
 
 }  // namespace
 
+namespace {
+
+// "K/N" with 1 <= K <= N: a share of a split workflow's dense work.
+std::string ShareValidator(const std::string& value) {
+  const auto slash = value.find('/');
+  try {
+    size_t used_k = 0, used_n = 0;
+    const int k = slash == std::string::npos ? 0 : std::stoi(value.substr(0, slash), &used_k);
+    const int n = slash == std::string::npos ? 0 : std::stoi(value.substr(slash + 1), &used_n);
+    if (used_k == slash && used_n == value.size() - slash - 1 && n >= 1 && n <= 10000 && k >= 1 && k <= n) return "";
+  } catch (const std::exception&) {
+  }
+  return "Value " + value + " is not a share K/N (1 <= K <= N <= 10000), e.g. 2/4";
+}
+
+void AddDenseShareOptions(CLI::App* cmd, RunArgs* a) {
+  auto* depth = cmd->add_option("--depth-share", a->depth_share,
+                                "Only the depth maps of share K of N of the image pairs (a workflow's job; "
+                                "several may run at once on one workspace)")
+                    ->check(CLI::Validator(ShareValidator, "K/N"));
+  auto* fuse = cmd->add_option("--fuse-share", a->fuse_share,
+                               "Only the fusion of share K of N of the ground tiles, once every depth share is "
+                               "done (a workflow's job)")
+                   ->check(CLI::Validator(ShareValidator, "K/N"));
+  auto* from = cmd->add_option("--from-shares", a->from_shares,
+                               "The cloud, DSM, DTM and contours from the N fused shares (a workflow's last "
+                               "dense job)")
+                   ->check(CLI::Range(1, 10000));
+  depth->excludes(fuse)->excludes(from);
+  fuse->excludes(from);
+}
+
+}  // namespace
+
 void RegisterRunCommands(CLI::App& app, CommandAction* run) {
   struct Stage {
     const char* name;
@@ -207,6 +241,7 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
     a->stage = s.name;
     CLI::App* cmd = app.add_subcommand(s.name, s.help);
     AddStageOptions(cmd, a.get(), s.needs_images, s.options);
+    if (a->stage == "dense") AddDenseShareOptions(cmd, a.get());
     cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
   }
   {
@@ -269,12 +304,29 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
 
 int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   // One process per workspace: a second one exits 1 at once, naming the
-  // holder. Holding the lock, anything a killed run left half-written is stale.
-  const DirectoryLock lock(a.output);
-  for (const std::filesystem::path& p : RemoveStaleTemporaryFiles(a.output)) {
-    ctx.Info("removed " + p.string() + " (left by an interrupted run)");
+  // holder. Holding the lock, anything a killed run left half-written is
+  // stale. A workflow's dense shares share the workspace (each writes its
+  // own files): they leave the others' files in progress alone.
+  const bool share_job = !a.depth_share.empty() || !a.fuse_share.empty();
+  const DirectoryLock lock(a.output, share_job ? DirectoryLock::Mode::kShared : DirectoryLock::Mode::kExclusive);
+  if (!share_job) {
+    for (const std::filesystem::path& p : RemoveStaleTemporaryFiles(a.output)) {
+      ctx.Info("removed " + p.string() + " (left by an interrupted run)");
+    }
   }
   PipelineOptions o;
+  // K/N (checked by ShareValidator) into the share (from 0) and the count.
+  const auto share_of = [&o](const std::string& kn, PipelineOptions::DenseStep step) {
+    o.dense_step = step;
+    o.dense_share = std::stoi(kn.substr(0, kn.find('/'))) - 1;
+    o.dense_shares = std::stoi(kn.substr(kn.find('/') + 1));
+  };
+  if (!a.depth_share.empty()) share_of(a.depth_share, PipelineOptions::DenseStep::kDepthShare);
+  if (!a.fuse_share.empty()) share_of(a.fuse_share, PipelineOptions::DenseStep::kFuseShare);
+  if (a.from_shares > 0) {
+    o.dense_step = PipelineOptions::DenseStep::kFromShares;
+    o.dense_shares = a.from_shares;
+  }
   o.images_dir = a.images_dir;
   o.workspace = a.output;
   o.force = a.force;

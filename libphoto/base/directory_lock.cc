@@ -14,13 +14,13 @@
 namespace aerotri {
 namespace fs = std::filesystem;
 
-DirectoryLock::DirectoryLock(const fs::path& folder) : path_(folder / ".aerotri.lock") {
+DirectoryLock::DirectoryLock(const fs::path& folder, Mode mode) : path_(folder / ".aerotri.lock") {
   std::error_code ec;
   fs::create_directories(folder, ec);
   if (ec) throw IoError(folder.string(), "cannot create the folder: " + ec.message());
   fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (fd_ < 0) throw IoError(path_.string(), std::string("cannot create the lock file: ") + std::strerror(errno));
-  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+  if (::flock(fd_, (mode == Mode::kShared ? LOCK_SH : LOCK_EX) | LOCK_NB) != 0) {
     const int err = errno;
     char holder[32] = {0};
     const ssize_t n = ::pread(fd_, holder, sizeof(holder) - 1, 0);
@@ -34,6 +34,7 @@ DirectoryLock::DirectoryLock(const fs::path& folder) : path_(folder / ".aerotri.
     }
     throw IoError(path_.string(), std::string("cannot lock: ") + std::strerror(err));
   }
+  if (mode == Mode::kShared) return;  // the file names an exclusive holder only
   const std::string pid = std::to_string(::getpid()) + "\n";
   if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
     // The lock holds without the pid; only the message of a second process suffers.

@@ -15,7 +15,12 @@ class DirectoryLock {
   // Creates the folder if needed and takes the lock without waiting. Throws
   // Error naming the folder and the holder's pid when another process holds
   // it, IoError when the lock file cannot be created.
-  explicit DirectoryLock(const std::filesystem::path& folder);
+  //
+  // Shared: several holders at once (the jobs of a workflow that each write
+  // only their own share of the workspace), none while an exclusive holder
+  // works, and no exclusive holder while any shared one does.
+  enum class Mode { kExclusive, kShared };
+  explicit DirectoryLock(const std::filesystem::path& folder, Mode mode = Mode::kExclusive);
   ~DirectoryLock();
   DirectoryLock(const DirectoryLock&) = delete;
   DirectoryLock& operator=(const DirectoryLock&) = delete;

@@ -314,8 +314,14 @@ TileGrid FusionGrid(double res, const DenseOptions& o) { return {res, o.tile_vox
 // it are read for it. Within a tile the points are sorted by voxel and
 // reduced (a sort beats a node hash map several times over at millions of
 // voxels); tiles run on all cores.
+//
+// A share (index of count) fuses a contiguous run of the tiles in row order,
+// the runs balanced by the depth records the tiles hold: the shares in index
+// order fuse every tile once and hand the sink what one call would, in its
+// order.
 void Fuse(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& o,
-          const FusedTileSink& sink, DenseSummary* s, const ProgressCallback& progress = {}) {
+          const FusedTileSink& sink, DenseSummary* s, const ProgressCallback& progress = {},
+          const DenseShare& share = {}) {
   DenseSummary unused;
   if (s == nullptr) s = &unused;
   if (files.empty()) return;
@@ -340,6 +346,31 @@ void Fuse(const std::vector<std::filesystem::path>& files, double res, const Den
   std::vector<std::pair<long long, long long>> tiles;
   for (long long ty = y0; ty <= y1; ++ty) {
     for (long long tx = x0; tx <= x1; ++tx) tiles.push_back({tx, ty});
+  }
+  if (share.count > 1) {
+    // Each tile's records (from the files' tile tables) and the share whose
+    // run holds the tile's middle record.
+    std::vector<double> weight(tiles.size(), 0.0);
+    double total = 0.0;
+    for (size_t t = 0; t < tiles.size(); ++t) {
+      const auto [tx, ty] = tiles[t];
+      for (size_t f = 0; f < files.size(); ++f) {
+        if (hi[f].x() < tx * tile || lo[f].x() >= (tx + 1) * tile || hi[f].y() < ty * tile ||
+            lo[f].y() >= (ty + 1) * tile) {
+          continue;
+        }
+        weight[t] += static_cast<double>(heads[f].CountIn(tiles[t], grid));
+      }
+      total += weight[t];
+    }
+    std::vector<std::pair<long long, long long>> mine;
+    double before = 0.0;
+    for (size_t t = 0; t < tiles.size(); ++t) {
+      const double middle = total > 0 ? (before + 0.5 * weight[t]) / total : (t + 0.5) / tiles.size();
+      before += weight[t];
+      if (std::min(share.count - 1, static_cast<int>(middle * share.count)) == share.index) mine.push_back(tiles[t]);
+    }
+    tiles.swap(mine);
   }
   struct Record {
     std::uint64_t key;
@@ -683,30 +714,69 @@ DenseCloud ComputeDenseCloud(const SparseModel& model, const std::function<cv::M
   return cloud;
 }
 
+namespace {
+
+// The pairs of the dense stage, in image order, and their depth-map files.
+struct DensePairs {
+  double res = 0.0;
+  std::vector<std::pair<int, int>> order;
+  std::vector<std::filesystem::path> paths;
+};
+
+DensePairs PlanPairs(const SparseModel& model, const DenseOptions& o) {
+  DensePairs plan;
+  const double gsd = MedianGsd(model);
+  plan.res = o.resolution_m > 0 ? o.resolution_m : gsd / o.image_scale;
+  if (!(plan.res > 0)) throw InvalidArgument("dense matching needs a registered model with points");
+  if (o.work_dir.empty()) throw InvalidArgument("dense matching needs a folder for its depth points");
+  const std::vector<std::vector<Partner>> partners = ChoosePartners(model, o);
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    if (!model.images[i].registered) continue;
+    for (const Partner& p : partners[i]) plan.order.push_back({static_cast<int>(i), p.image});
+  }
+  for (const auto& [i, j] : plan.order) {
+    plan.paths.push_back(o.work_dir / (model.images[i].name + "+" + model.images[j].name + ".pts"));
+  }
+  return plan;
+}
+
+// The share's run of the pairs (in image order, so mostly neighbours).
+std::pair<size_t, size_t> ShareOfPairs(const DensePairs& plan, const DenseShare& share) {
+  return {plan.order.size() * share.index / share.count, plan.order.size() * (share.index + 1) / share.count};
+}
+
+void CheckShare(const DenseShare& share) {
+  if (share.count < 1 || share.index < 0 || share.index >= share.count) {
+    throw InvalidArgument("a share of the dense work must be 1 to " + std::to_string(share.count) + " of " +
+                          std::to_string(share.count) + ", got " + std::to_string(share.index + 1));
+  }
+}
+
+}  // namespace
+
 void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int)>& load_image,
                        const DenseOptions& o, const ProgressCallback& progress, const FusedTileSink& sink,
                        DenseSummary* summary) {
+  // Depth maps are most of the work; fusion the rest.
+  ComputeDepthMaps(model, load_image, o, DenseShare{}, ProgressPart(progress, 0.0, 0.85), summary);
+  FuseModelDepthMaps(model, o, DenseShare{}, ProgressPart(progress, 0.85, 1.0), sink, summary);
+}
+
+void ComputeDepthMaps(const SparseModel& model, const std::function<cv::Mat(int)>& load_image,
+                      const DenseOptions& o, const DenseShare& share, const ProgressCallback& progress,
+                      DenseSummary* summary) {
+  CheckShare(share);
   DenseSummary local;
   DenseSummary& s = summary ? *summary : local;
-  const double gsd = MedianGsd(model);
-  const double res = o.resolution_m > 0 ? o.resolution_m : gsd / o.image_scale;
-  if (!(res > 0)) throw InvalidArgument("dense matching needs a registered model with points");
+  const DensePairs plan = PlanPairs(model, o);
+  const double res = plan.res;
   s.resolution_m = res;
-  if (o.work_dir.empty()) throw InvalidArgument("dense matching needs a folder for its depth points");
   std::filesystem::create_directories(o.work_dir);
-  const std::vector<std::vector<Partner>> partners = ChoosePartners(model, o);
-  std::vector<std::pair<int, int>> order;
-  for (size_t i = 0; i < model.images.size(); ++i) {
-    if (!model.images[i].registered) continue;
-    for (const Partner& p : partners[i]) order.push_back({static_cast<int>(i), p.image});
-  }
+  const auto [first, last] = ShareOfPairs(plan, share);
+  const std::vector<std::pair<int, int>> order(plan.order.begin() + first, plan.order.begin() + last);
+  const std::vector<std::filesystem::path> paths(plan.paths.begin() + first, plan.paths.begin() + last);
   // Pairs on all cores (OpenCV's SGBM runs on one); each writes its own file.
-  std::vector<std::filesystem::path> paths;
-  for (const auto& [i, j] : order) {
-    paths.push_back(o.work_dir / (model.images[i].name + "+" + model.images[j].name + ".pts"));
-  }
-  // Depth maps are most of the work; fusion the rest.
-  const ProgressCallback pairs_progress = ProgressPart(progress, 0.0, 0.85);
+  const ProgressCallback& pairs_progress = progress;
   std::vector<char> ok(order.size(), 0);
   std::mutex mutex;
   size_t done = 0;
@@ -733,11 +803,30 @@ void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int
                      model.images[i].name + " + " + model.images[j].name + ": " + std::to_string(n) + " depth points");
     }
   });
+}
+
+std::vector<std::filesystem::path> DepthMapPaths(const SparseModel& model, const DenseOptions& o,
+                                                 const DenseShare& share) {
+  CheckShare(share);
+  const DensePairs plan = PlanPairs(model, o);
+  const auto [first, last] = ShareOfPairs(plan, share);
+  return {plan.paths.begin() + first, plan.paths.begin() + last};
+}
+
+void FuseModelDepthMaps(const SparseModel& model, const DenseOptions& o, const DenseShare& share,
+                        const ProgressCallback& progress, const FusedTileSink& sink, DenseSummary* summary) {
+  CheckShare(share);
+  DenseSummary local;
+  DenseSummary& s = summary ? *summary : local;
+  const DensePairs plan = PlanPairs(model, o);
+  s.resolution_m = plan.res;
+  // A pair's file exists exactly when its depth map was made (written
+  // atomically; a pair that failed writes none).
   std::vector<std::filesystem::path> files;
-  for (size_t k = 0; k < order.size(); ++k) {
-    if (ok[k]) files.push_back(paths[k]);
+  for (const std::filesystem::path& path : plan.paths) {
+    if (std::filesystem::exists(path)) files.push_back(path);
   }
-  Fuse(files, res, o, sink, &s, ProgressPart(progress, 0.85, 1.0));
+  Fuse(files, plan.res, o, sink, &s, progress, share);
 }
 
 

@@ -110,6 +110,28 @@ struct FusedTileSink {
 void ComputeDenseCloud(const SparseModel& model, const std::function<cv::Mat(int)>& load_image,
                        const DenseOptions& options, const ProgressCallback& progress, const FusedTileSink& sink,
                        DenseSummary* summary);
+// The same work in shares, for a workflow that runs them as separate jobs
+// (aerotri split): share index (from 0) of count.
+struct DenseShare {
+  int index = 0;
+  int count = 1;
+};
+// Steps 1-3 for a share of the pairs (a contiguous run of them in image
+// order), each pair's depth map into options.work_dir; a pair whose file is
+// there already is kept (an interrupted run, or another job's).
+void ComputeDepthMaps(const SparseModel& model, const std::function<cv::Mat(int)>& load_image,
+                      const DenseOptions& options, const DenseShare& share, const ProgressCallback& progress,
+                      DenseSummary* summary);
+// The depth-map files ComputeDepthMaps writes for a share (made or not).
+std::vector<std::filesystem::path> DepthMapPaths(const SparseModel& model, const DenseOptions& options,
+                                                 const DenseShare& share);
+// Step 4 for a share of the fusion tiles (a contiguous run of them in tile
+// order, the runs balanced by their depth points), once every share's depth
+// maps are in options.work_dir. The shares in index order hand their sinks
+// the tiles, in the order, that ComputeDenseCloud hands its one sink: the
+// same cloud, whatever the number of shares.
+void FuseModelDepthMaps(const SparseModel& model, const DenseOptions& options, const DenseShare& share,
+                        const ProgressCallback& progress, const FusedTileSink& sink, DenseSummary* summary);
 // The same, gathered into one cloud (tests, small surveys).
 DenseCloud ComputeDenseCloud(const SparseModel& model,
                              const std::function<cv::Mat(int)>& load_image,

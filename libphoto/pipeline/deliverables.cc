@@ -7,7 +7,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <map>
+#include <optional>
 #include <regex>
 
 #include <opencv2/imgcodecs.hpp>
@@ -16,6 +19,7 @@
 #include "georef/crs.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/memory.h"
 #include "libphoto/base/parallel.h"
 #include "libphoto/dense/dense_stereo.h"
 #include "libphoto/export/cloud_tiles.h"
@@ -579,7 +583,222 @@ json OrthoAtCheckPoints(const json& report, const fs::path& ortho, const GeoFram
 
 }  // namespace
 
+namespace {
+
+using DenseStep = PipelineOptions::DenseStep;
+
+// The dense matching and fusion options of the pipeline's.
+DenseOptions DenseOptionsOf(const PipelineOptions& o) {
+  DenseOptions d;
+  d.resolution_m = o.dense_resolution_m;
+  d.image_scale = o.dense_image_scale;
+  d.min_views = o.dense_min_views;
+  d.num_threads = o.num_threads;
+  d.work_dir = o.workspace / "depth";
+  return d;
+}
+
+// A workflow's dense shares (PipelineOptions::DenseStep) keep their records
+// and fused points in OUTPUT/dense_parts/: depth_K_of_N.json, and
+// fused_K_of_N.pts with fused_K_of_N.json.
+fs::path ShareFile(const PipelineOptions& o, const char* what, int k, const std::string& ext) {
+  return o.workspace / "dense_parts" /
+         (std::string(what) + "_" + std::to_string(k + 1) + "_of_" + std::to_string(o.dense_shares) + ext);
+}
+
+// A share's record, when it was made under the current dense options.
+std::optional<json> CurrentShareRecord(const PipelineOptions& o, const fs::path& record) {
+  if (!fs::exists(record)) return std::nullopt;
+  json r = ReadJson(record, "dense");
+  if (!FingerprintChanges(r.value("options", json()), DenseFingerprint(o)).empty()) return std::nullopt;
+  return r;
+}
+
+// Every share's record of one step, or InvalidArgument naming the first
+// missing (or stale) one and the job that makes it.
+std::vector<json> ShareRecords(const PipelineOptions& o, const char* what, const char* option) {
+  std::vector<json> records;
+  for (int k = 0; k < o.dense_shares; ++k) {
+    const fs::path record = ShareFile(o, what, k, ".json");
+    std::optional<json> r = CurrentShareRecord(o, record);
+    if (!r) {
+      throw InvalidArgument(record.string() + (fs::exists(record) ? ": made under other dense options" : ": missing") +
+                            "; run aerotri dense -o " + o.workspace.string() + " " + option + " " +
+                            std::to_string(k + 1) + "/" + std::to_string(o.dense_shares) + " first");
+    }
+    records.push_back(std::move(*r));
+  }
+  return records;
+}
+
+// The fused points of a share on disk: "AERFUS01", then per point x, y, z
+// (double, the deliverables' CRS) and r, g, b.
+constexpr char kFusedMagic[8] = {'A', 'E', 'R', 'F', 'U', 'S', '0', '1'};
+constexpr std::size_t kFusedRecord = 3 * sizeof(double) + 3;
+
+void WriteFusedPoints(std::ostream& out, const DenseCloud& part) {
+  std::vector<char> buffer(part.positions.size() * kFusedRecord);
+  char* at = buffer.data();
+  for (size_t k = 0; k < part.positions.size(); ++k) {
+    std::memcpy(at, part.positions[k].data(), 3 * sizeof(double));
+    std::memcpy(at + 3 * sizeof(double), part.colours[k].data(), 3);
+    at += kFusedRecord;
+  }
+  out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+}
+
+// Reads a share's fused points in batches of at most `batch` points; the
+// file must hold exactly `points` (its record's count).
+void ReadFusedPoints(const fs::path& path, std::uint64_t points, std::size_t batch,
+                     const std::function<void(const std::vector<Eigen::Vector3d>&,
+                                              const std::vector<std::array<std::uint8_t, 3>>&)>& take) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (!in || !in.read(magic, 8) || std::memcmp(magic, kFusedMagic, 8) != 0 || ec ||
+      size != 8 + points * kFusedRecord) {
+    throw IoError(path.string(), "not the " + std::to_string(points) + " fused points its record names (" +
+                                     (ec ? std::string("unreadable") : std::to_string(size) + " bytes") +
+                                     "); run its fusion share again");
+  }
+  std::vector<char> buffer;
+  std::vector<Eigen::Vector3d> xyz;
+  std::vector<std::array<std::uint8_t, 3>> rgb;
+  for (std::uint64_t done = 0; done < points;) {
+    const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(batch, points - done));
+    buffer.resize(n * kFusedRecord);
+    if (!in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()))) {
+      throw IoError(path.string(), "cut short after " + std::to_string(done) + " points");
+    }
+    xyz.resize(n);
+    rgb.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      std::memcpy(xyz[k].data(), buffer.data() + k * kFusedRecord, 3 * sizeof(double));
+      std::memcpy(rgb[k].data(), buffer.data() + k * kFusedRecord + 3 * sizeof(double), 3);
+    }
+    take(xyz, rgb);
+    done += n;
+  }
+}
+
+// The report of a survey the dense stage may work from: georeferenced (a
+// share throws, the whole stage warns and returns nullopt) and not failed
+// (unless keep_going).
+std::optional<json> DenseReport(const PipelineOptions& o) {
+  json report = ReadJson(o.workspace / "report.json", "georeference");
+  if (!report.value("georeferenced", false)) {
+    if (o.dense_step == DenseStep::kDepthShare || o.dense_step == DenseStep::kFuseShare) {
+      throw InvalidArgument((o.workspace / "report.json").string() +
+                            ": the survey is not georeferenced; a dense share has nothing to work in");
+    }
+    Log(o, "warning: dense: the survey is not georeferenced; no cloud or DSM in a CRS is written");
+    return std::nullopt;
+  }
+  if (report.value("status", "") == "failed" && !o.keep_going) {
+    throw InvalidArgument((o.workspace / "report.json").string() +
+                          ": the adjustment failed (see its errors); no cloud or DSM is written from it "
+                          "(--keep-going writes them, tagged as failed)");
+  }
+  return report;
+}
+
+// One job of a workflow's dense stage: the depth maps of a share of the
+// pairs, or the fusion of a share of the tiles (once every depth share is
+// done) into the deliverables' CRS. Each writes only its own files; its
+// record (with its time and peak memory) says it is done.
+bool RunDenseShare(const PipelineOptions& o) {
+  const bool depth_step = o.dense_step == DenseStep::kDepthShare;
+  const int k = o.dense_share;
+  const fs::path record = ShareFile(o, depth_step ? "depth" : "fused", k, ".json");
+  const std::string what = std::string("dense: ") + (depth_step ? "depth maps" : "fusion") + " share " +
+                           std::to_string(k + 1) + " of " + std::to_string(o.dense_shares);
+  if (!o.force && CurrentShareRecord(o, record)) {
+    Log(o, what + ": done already (" + record.string() + ")");
+    return false;
+  }
+  const auto start = BeginStage();
+  const json report = *DenseReport(o);
+  // What was made from this step's earlier output is stale now: the fused
+  // shares (after depth maps) and the deliverables' record, so that the
+  // steps after this one rerun.
+  if (depth_step) {
+    for (int j = 0; j < o.dense_shares; ++j) {
+      fs::remove(ShareFile(o, "fused", j, ".json"));
+      fs::remove(ShareFile(o, "fused", j, ".pts"));
+    }
+  }
+  fs::remove(o.workspace / "dense.json");
+  fs::remove(o.workspace / "report.html");
+  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
+  const IngestView ingest = LoadIngest(o);
+  const fs::path images_dir = ingest.ImagesDir(o);
+  const int max_dimension = ingest.record.working_max_dimension;
+  const DenseOptions d = DenseOptionsOf(o);
+  const DenseShare share{k, o.dense_shares};
+  const ProgressCallback progress = StageProgress(o, "dense");
+  fs::create_directories(record.parent_path());
+  DenseSummary summary;
+  json out = {{"share", k + 1}, {"shares", o.dense_shares}, {"options", DenseFingerprint(o)}};
+  if (depth_step) {
+    // This share's files of an earlier attempt are kept (resumed) only when
+    // it ran under the same options; the model's own changes remove them
+    // all (the georeference stage).
+    const fs::path started = ShareFile(o, "depth", k, ".started.json");
+    if (o.force || !CurrentShareRecord(o, started)) {
+      for (const fs::path& f : DepthMapPaths(model, d, share)) fs::remove(f);
+      WriteTextFileAtomically(started, json({{"options", DenseFingerprint(o)}}).dump(2) + "\n");
+    }
+    ComputeDepthMaps(
+        model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d, share,
+        progress, &summary);
+    out["pairs"] = summary.pairs;
+    out["pairs_failed"] = summary.pairs_failed;
+    out["depth_points"] = summary.depth_points;
+    Log(o, what + ": " + std::to_string(summary.pairs) + " depth maps (" + std::to_string(summary.pairs_failed) +
+               " pairs failed)");
+  } else {
+    // Every depth map the depth shares made must still be there (a
+    // finished dense stage removes them): fusing fewer would thin the
+    // cloud where they are missing, silently.
+    int made = 0, present = 0;
+    for (const json& r : ShareRecords(o, "depth", "--depth-share")) made += r.value("pairs", 0);
+    for (const fs::path& f : DepthMapPaths(model, d, DenseShare{})) present += fs::exists(f) ? 1 : 0;
+    if (present != made) {
+      throw InvalidArgument(d.work_dir.string() + ": " + std::to_string(present) + " depth maps where the depth "
+                            "shares made " + std::to_string(made) + "; run them again (aerotri dense --depth-share "
+                            "K/" + std::to_string(o.dense_shares) + " --force for each K)");
+    }
+    const GeoFrame g = FrameOf(report);
+    std::string heights;
+    const GeoFrame deliverable{g.frame, DeliverableCrs(g, o, &heights)};
+    FusedTileSink sink;
+    sink.prepare = [&](DenseCloud* part) {
+      const Crs crs = Crs::FromString(deliverable.crs.definition());  // one per thread: PROJ objects are not shared
+      for (Eigen::Vector3d& p : part->positions) p = crs.FromGeodetic(deliverable.frame.GeodeticFromEnu(p));
+    };
+    const fs::path points = ShareFile(o, "fused", k, ".pts");
+    WriteFileAtomically(points, [&](std::ostream& stream) {
+      stream.write(kFusedMagic, 8);
+      sink.consume = [&](DenseCloud&& part) { WriteFusedPoints(stream, part); };
+      FuseModelDepthMaps(model, d, share, progress, sink, &summary);
+    });
+    out["points"] = summary.fused_points;
+    out["tiles"] = summary.tiles;
+    out["resolution_m"] = summary.resolution_m;
+    Log(o, what + ": " + std::to_string(summary.fused_points) + " points in " + std::to_string(summary.tiles) +
+               " tiles");
+  }
+  out["wall_s"] = std::chrono::duration<double>(Clock::now() - start).count();
+  out["peak_rss_mb"] = PeakRssMb();
+  WriteTextFileAtomically(record, out.dump(2) + "\n");
+  return true;
+}
+
+}  // namespace
+
 bool RunDenseStage(const PipelineOptions& o) {
+  if (o.dense_step == DenseStep::kDepthShare || o.dense_step == DenseStep::kFuseShare) return RunDenseShare(o);
   const fs::path las = o.workspace / "cloud.las", ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
   const fs::path dtm = o.workspace / "dtm.tif", contours = o.workspace / "contours.gpkg";
   bool rerun = o.force;
@@ -613,28 +832,14 @@ bool RunDenseStage(const PipelineOptions& o) {
     }
   }
   const auto start = BeginStage();
-  if (rerun) fs::remove_all(o.workspace / "depth");
-  json report = ReadJson(o.workspace / "report.json", "georeference");
-  if (!report.value("georeferenced", false)) {
-    Log(o, "warning: dense: the survey is not georeferenced; no cloud or DSM in a CRS is written");
-    return false;
-  }
-  if (report.value("status", "") == "failed" && !o.keep_going) {
-    throw InvalidArgument((o.workspace / "report.json").string() +
-                          ": the adjustment failed (see its errors); no cloud or DSM is written from it "
-                          "(--keep-going writes them, tagged as failed)");
-  }
+  const bool from_shares = o.dense_step == DenseStep::kFromShares;
+  // The shares' depth maps are theirs (each share removes its own stale ones).
+  if (rerun && !from_shares) fs::remove_all(o.workspace / "depth");
+  const std::optional<json> georeferenced = DenseReport(o);
+  if (!georeferenced) return false;
+  const json& report = *georeferenced;
   const GeoFrame g = FrameOf(report);
-  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
-  IngestView ingest = LoadIngest(o);
-  const fs::path images_dir = ingest.ImagesDir(o);
-  const int max_dimension = ingest.record.working_max_dimension;
-  DenseOptions d;
-  d.resolution_m = o.dense_resolution_m;
-  d.image_scale = o.dense_image_scale;
-  d.min_views = o.dense_min_views;
-  d.num_threads = o.num_threads;
-  d.work_dir = o.workspace / "depth";
+  const DenseOptions d = DenseOptionsOf(o);
   DenseSummary summary;
   // The fused cloud goes to disk in tiles of the output CRS as it is fused
   // (never whole in memory: 300 million points at 1,000 photos), and the
@@ -661,20 +866,59 @@ bool RunDenseStage(const PipelineOptions& o) {
     const Crs crs = Crs::FromString(deliverable.crs.definition());  // one per thread: PROJ objects are not shared
     for (Eigen::Vector3d& p : part->positions) p = crs.FromGeodetic(deliverable.frame.GeodeticFromEnu(p));
   };
-  sink.consume = [&](DenseCloud&& part) {
+  auto add = [&](const std::vector<Eigen::Vector3d>& xyz, const std::vector<std::array<std::uint8_t, 3>>& rgb,
+                 double resolution_m) {
     if (!tiles) {
-      products.dsm.resolution_m = DsmResolution(o, part.resolution_m);
+      products.dsm.resolution_m = DsmResolution(o, resolution_m);
       // About 3.6 million points a tile whatever the GSD (some 3.6 points
       // a voxel column): one tile per thread is ~0.3 GB at the most.
-      const double tile_m = std::max(20.0, 1000.0 * part.resolution_m);
+      const double tile_m = std::max(20.0, 1000.0 * resolution_m);
       tiles = std::make_unique<TiledCloud>(o.workspace / "dense_tiles", tile_m, CloudProductsHalo(products));
     }
-    tiles->Add(part.positions, part.colours);
+    tiles->Add(xyz, rgb);
   };
-  ComputeDenseCloud(
-      model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
-      ProgressPart(dense_progress, 0.0, 0.8), sink, &summary);
+  if (from_shares) {
+    // The shares' fused points, in share order: the cloud one fusion gives.
+    const std::vector<json> depth = ShareRecords(o, "depth", "--depth-share");
+    const std::vector<json> fused = ShareRecords(o, "fused", "--fuse-share");
+    for (const json& r : depth) {
+      summary.pairs += r.value("pairs", 0);
+      summary.pairs_failed += r.value("pairs_failed", 0);
+      summary.depth_points += r.value("depth_points", 0LL);
+    }
+    std::uint64_t total = 0;
+    for (const json& r : fused) total += r.value("points", std::uint64_t{0});
+    std::uint64_t read = 0;
+    for (int k = 0; k < o.dense_shares; ++k) {
+      const json& r = fused[k];
+      summary.tiles += r.value("tiles", 0);
+      summary.resolution_m = r.value("resolution_m", 0.0);
+      const std::uint64_t n = r.value("points", std::uint64_t{0});
+      ReadFusedPoints(ShareFile(o, "fused", k, ".pts"), n, std::size_t{1} << 20,
+                      [&](const std::vector<Eigen::Vector3d>& xyz, const std::vector<std::array<std::uint8_t, 3>>& rgb) {
+                        add(xyz, rgb, summary.resolution_m);
+                        read += xyz.size();
+                        ReportProgress(ProgressPart(dense_progress, 0.0, 0.8),
+                                       total > 0 ? static_cast<double>(read) / total : 1.0,
+                                       "fused shares: " + std::to_string(read) + " of " + std::to_string(total) +
+                                           " points");
+                      });
+      summary.fused_points += static_cast<long long>(n);
+    }
+  } else {
+    const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
+    const IngestView ingest = LoadIngest(o);
+    const fs::path images_dir = ingest.ImagesDir(o);
+    const int max_dimension = ingest.record.working_max_dimension;
+    sink.consume = [&](DenseCloud&& part) { add(part.positions, part.colours, part.resolution_m); };
+    ComputeDenseCloud(
+        model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, d,
+        ProgressPart(dense_progress, 0.0, 0.8), sink, &summary);
+  }
   if (tiles) tiles->Finish();
+  if (from_shares) {
+    for (int k = 0; k < o.dense_shares; ++k) fs::remove(ShareFile(o, "fused", k, ".pts"));  // in the tiles now
+  }
   // Fused: the tiles hold the cloud now, and the depth maps (25 GB at 1,000
   // photos) need not share the disk with the LAS and PLY being written. An
   // interruption from here on recomputes them.

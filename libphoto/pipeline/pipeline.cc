@@ -466,6 +466,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
 
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
   fs::remove_all(o.workspace / "depth");  // depth maps of an earlier model are stale
+  fs::remove_all(o.workspace / "dense_parts");  // and so are a workflow's dense shares
   for (const char* stale : {"cloud.las", "cloud.ply", "dsm.tif", "dense.json", "report.html"}) {
     fs::remove(o.workspace / stale);  // so are the deliverables: the dense stage reruns
   }
@@ -487,6 +488,10 @@ std::string SurveyStatusOf(const std::filesystem::path& workspace) {
 
 void PipelineOptions::Check() const {
   CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
+  CheckOption(dense_shares >= 1 && dense_shares <= 10000, "the number of dense shares", dense_shares,
+              "1 to 10000");
+  CheckOption(dense_share >= 0 && dense_share < dense_shares, "the dense share", dense_share + 1,
+              "1 to the number of shares (" + std::to_string(dense_shares) + ")");
   CheckOption(gps_sigma_h_m > 0.0 && std::isfinite(gps_sigma_h_m), "--gps-sigma-h", gps_sigma_h_m,
               "a positive number of metres");
   CheckOption(gps_sigma_v_m > 0.0 && std::isfinite(gps_sigma_v_m), "--gps-sigma-v", gps_sigma_v_m,

@@ -69,6 +69,16 @@ struct PipelineOptions {
   double dense_resolution_m = 0.0;  // 0: the median GSD at working resolution
   double dense_image_scale = 1.0;   // of the working images for matching
   int dense_min_views = 2;          // depth maps that must agree on a point
+  // The dense stage as separate jobs of a workflow (aerotri split), each its
+  // own process on the one workspace: the depth maps of share k of n
+  // (kDepthShare), then, once every depth share is done, the fusion of
+  // share k of n into the deliverables' CRS (kFuseShare), then the
+  // deliverables from the n fused shares (kFromShares): the same cloud and
+  // products as kWhole, all in one.
+  enum class DenseStep { kWhole, kDepthShare, kFuseShare, kFromShares };
+  DenseStep dense_step = DenseStep::kWhole;
+  int dense_share = 0;   // k, from 0 (the command line counts from 1)
+  int dense_shares = 1;  // n
   double dsm_resolution_m = 0.0;    // 0: twice the dense resolution
   double dsm_fill_m = 2.0;          // holes filled up to this distance
   bool cog = false;                 // Cloud-Optimised GeoTIFF (DSM, DTM)

@@ -180,6 +180,7 @@ void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>&
   WriteTextFileAtomically(o.workspace / "parts" / "plan.json", plan.dump(2) + "\n");
 
   const std::string exe = "{AEROTRI:q}";  // Snakemake quotes it for the shell
+  const size_t shares = parts.size();  // the dense stage's jobs, as many as the parts'
   const std::string threads = o.num_threads > 0 ? " --threads " + std::to_string(o.num_threads) : "";
   std::string georef;
   if (!o.gcp.empty()) georef += " --gcp " + Quote(fs::absolute(o.gcp).string());
@@ -201,7 +202,9 @@ void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>&
     << "AEROTRI = " << json(fs::absolute(aerotri).string()).dump() << "  # the aerotri executable every step calls\n"
     << "PARTS = [";
   for (size_t k = 0; k < parts.size(); ++k) s << (k ? ", " : "") << "\"" << parts[k].name << "\"";
-  s << "]\n\n"
+  s << "]\n"
+    << "SHARES = list(range(1, " << shares << " + 1))  # of the dense stage\n"
+    << "wildcard_constraints:\n    share=\"[0-9]+\"\n\n"
     << "rule all:\n    input: \"report.html\"\n\n"
     << "rule part_sparse:\n"
     << "    input: \"parts/plan.json\"\n"
@@ -218,14 +221,36 @@ void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>&
     << "    input: expand(\"parts/{part}/ws/reconstruction.json\", part=PARTS)\n"
     << "    output: \"reconstruction.json\"\n"
     << "    shell: \"" << exe << " merge -o . --quiet\"\n\n"
+    // The adjusted model (georeferenced/) is what follows reads, and nothing
+    // after the georeference rewrites it (report.json is completed by the
+    // report step: as an input it would make every later step look stale).
     << "rule georeference:\n"
     << "    input: \"reconstruction.json\"\n"
-    << "    output: \"report.json\"\n"
+    << "    output: \"georeferenced/images.txt\"\n"
     << "    shell: \"" << exe << " georeference -o . --quiet" << threads << georef << "\"\n\n"
+    // The dense stage in as many shares as parts, each an independent job:
+    // the depth maps of a share of the pairs, then (all of them done) the
+    // fusion of a share of the ground tiles, then the deliverables from the
+    // fused shares. The records are Snakemake's temp files; the depth maps
+    // and fused points are removed by the last step.
+    << "rule dense_depth:\n"
+    << "    input: \"georeferenced/images.txt\"\n"
+    << "    output: temp(\"dense_parts/depth_{share}_of_" << shares << ".json\")\n"
+    << "    threads: 2\n"
+    << "    shell: \"" << exe << " dense -o . --quiet --threads {threads} --depth-share {wildcards.share}/" << shares
+    << "\"\n\n"
+    << "rule dense_fuse:\n"
+    << "    input: expand(\"dense_parts/depth_{share}_of_" << shares << ".json\", share=SHARES)\n"
+    << "    output: temp(\"dense_parts/fused_{share}_of_" << shares << ".json\")\n"
+    << "    threads: 2\n"
+    << "    shell: \"" << exe << " dense -o . --quiet --threads {threads} --fuse-share {wildcards.share}/" << shares
+    << "\"\n\n"
     << "rule dense:\n"
-    << "    input: \"report.json\"\n"
+    << "    input:\n"
+    << "        expand(\"dense_parts/depth_{share}_of_" << shares << ".json\", share=SHARES),\n"
+    << "        expand(\"dense_parts/fused_{share}_of_" << shares << ".json\", share=SHARES)\n"
     << "    output: \"dsm.tif\"\n"
-    << "    shell: \"" << exe << " dense -o . --quiet" << threads << "\"\n\n"
+    << "    shell: \"" << exe << " dense -o . --quiet" << threads << " --from-shares " << shares << "\"\n\n"
     << "rule ortho:\n"
     << "    input: \"dsm.tif\"\n"
     << "    output: \"ortho.tif\"\n"
