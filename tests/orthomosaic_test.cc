@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <set>
 
 #include <opencv2/imgproc.hpp>
 
@@ -212,6 +213,77 @@ TEST(OrthomosaicFile, IsACloudOptimisedGeoTiffWithAMaskAndOverviews) {
   int files = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir.path())) files += e.is_regular_file();
   EXPECT_EQ(files, 1) << "only ortho.tif is left";
+}
+
+// The orthomosaic in shares of tile rows, as a split workflow's jobs draw it
+// (one share empty: more shares than rows would leave some so), joined by
+// AssembleOrthomosaic: the file one call writes, cell for cell and band for
+// band (alpha included), from the same photos.
+TEST(OrthomosaicFile, BandsOfSharesAssembleToTheOneCallOrthomosaic) {
+  const Scene scene = MakeScene(4.0);
+  testing::TempDir dir;
+  OrthoOptions o;
+  o.resolution_m = std::round(scene.gsd * 1000.0) / 1000.0;
+  o.tile_size = 128;
+  o.compress = "DEFLATE";
+  o.cog = false;
+  OrthoSummary whole;
+  RunOrtho(scene, o, dir.path() / "whole.tif", &whole);
+  const int rows = (whole.height + o.tile_size - 1) / o.tile_size;
+  ASSERT_GE(rows, 3);
+  o.share_count = rows + 1;  // one share has no row
+  std::vector<std::filesystem::path> bands;
+  std::set<int> images;
+  long long surface = 0, filled = 0;
+  int empty = 0, covered = 0;
+  for (int k = 0; k < o.share_count; ++k) {
+    o.share_index = k;
+    OrthoSummary s;
+    const std::filesystem::path band = dir.path() / ("band" + std::to_string(k) + ".tif");
+    RunOrtho(scene, o, band, &s);
+    if (s.band_height == 0) {
+      ++empty;
+      EXPECT_FALSE(std::filesystem::exists(band));
+      continue;
+    }
+    EXPECT_EQ(s.band_y, covered) << "share " << k;
+    covered += s.band_height;
+    bands.push_back(band);
+    images.insert(s.images.begin(), s.images.end());
+    surface += s.cells_with_surface;
+    filled += s.cells_filled;
+  }
+  EXPECT_EQ(empty, 1);
+  EXPECT_EQ(covered, whole.height);
+  EXPECT_EQ(static_cast<int>(images.size()), whole.images_used);
+  EXPECT_EQ(surface, whole.cells_with_surface);
+  EXPECT_EQ(filled, whole.cells_filled);
+  o.share_count = 1;
+  o.share_index = 0;
+  AssembleOrthomosaic(bands, o, dir.path() / "joined.tif");
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> a(
+      static_cast<GDALDataset*>(GDALOpen((dir.path() / "whole.tif").string().c_str(), GA_ReadOnly)));
+  std::unique_ptr<GDALDataset> b(
+      static_cast<GDALDataset*>(GDALOpen((dir.path() / "joined.tif").string().c_str(), GA_ReadOnly)));
+  ASSERT_TRUE(a && b);
+  ASSERT_EQ(a->GetRasterXSize(), b->GetRasterXSize());
+  ASSERT_EQ(a->GetRasterYSize(), b->GetRasterYSize());
+  ASSERT_EQ(a->GetRasterCount(), 4);
+  ASSERT_EQ(b->GetRasterCount(), 4);
+  double ga[6], gb[6];
+  a->GetGeoTransform(ga);
+  b->GetGeoTransform(gb);
+  for (int k = 0; k < 6; ++k) EXPECT_EQ(ga[k], gb[k]) << k;
+  const int w = a->GetRasterXSize(), h = a->GetRasterYSize();
+  std::vector<std::uint8_t> pa(static_cast<size_t>(w) * h), pb(pa.size());
+  for (int band = 1; band <= 4; ++band) {
+    ASSERT_EQ(a->GetRasterBand(band)->RasterIO(GF_Read, 0, 0, w, h, pa.data(), w, h, GDT_Byte, 0, 0), CE_None);
+    ASSERT_EQ(b->GetRasterBand(band)->RasterIO(GF_Read, 0, 0, w, h, pb.data(), w, h, GDT_Byte, 0, 0), CE_None);
+    size_t differ = 0;
+    for (size_t k = 0; k < pa.size(); ++k) differ += pa[k] != pb[k];
+    EXPECT_EQ(differ, 0u) << "band " << band;
+  }
 }
 
 TEST(OrthomosaicFile, BadOptionsAreRefused) {

@@ -4,7 +4,8 @@
 // registered once, the seams invisible (check-point RMSE within 1.2x of the
 // unsplit run's, no step between the parts' areas in the DSM above a GSD);
 // the dense stage in shares (4 jobs of depth maps, 4 of fusion) gives the
-// DSM the dense stage gives in one process.
+// DSM the dense stage gives in one process; the orthomosaic is drawn in 4
+// bands and joined.
 // Skipped (visibly) where snakemake is not installed.
 #include <gtest/gtest.h>
 
@@ -117,7 +118,12 @@ TEST(SplitWorkflow, FourPartsUnderSnakemakeMatchTheUnsplitSurvey) {
     const std::string share = std::to_string(k) + "_of_4";
     EXPECT_FALSE(fs::exists(s.workspace / "dense_parts" / ("fused_" + share + ".pts"))) << share;
     EXPECT_FALSE(fs::exists(s.workspace / "dense_parts" / ("fused_" + share + ".json"))) << share;
+    // The orthomosaic was drawn in 4 bands, joined, and they are gone.
+    EXPECT_FALSE(fs::exists(s.workspace / "ortho_parts" / ("band_" + share + ".tif"))) << share;
   }
+  const json ortho = json::parse(ReadTextFile(s.workspace / "ortho.json"));
+  EXPECT_EQ(ortho["ortho"]["images_used"], 35) << ortho;
+  EXPECT_GT(ortho["ortho"]["filled_fraction"].get<double>(), 0.99) << ortho;
   const std::string again = "cd '" + s.workspace.string() + "' && snakemake --cores 2 -n > again.log 2>&1";
   ASSERT_EQ(std::system(again.c_str()), 0) << ReadTextFile(s.workspace / "again.log");
   EXPECT_NE(ReadTextFile(s.workspace / "again.log").find("Nothing to be done"), std::string::npos)

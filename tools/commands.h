@@ -151,6 +151,8 @@ struct RunArgs {
   // fusion), or N (the deliverables from N fused shares); one at most.
   std::string depth_share, fuse_share;
   int from_shares = 0;
+  // ortho as a workflow's jobs: "K/N" (a band of tile rows); from_shares: N.
+  std::string band_share;
   int parts = 4;               // split
   double seam_margin_m = 0.0;  // split; 0: automatic
   int threads = 0;

@@ -209,6 +209,17 @@ void AddDenseShareOptions(CLI::App* cmd, RunArgs* a) {
   fuse->excludes(from);
 }
 
+void AddOrthoShareOptions(CLI::App* cmd, RunArgs* a) {
+  auto* band = cmd->add_option("--band-share", a->band_share,
+                               "Only the band of tile rows of share K of N (a workflow's job; several may run at "
+                               "once on one workspace)")
+                   ->check(CLI::Validator(ShareValidator, "K/N"));
+  auto* from = cmd->add_option("--from-shares", a->from_shares,
+                               "OUTPUT/ortho.tif from the N bands (a workflow's last ortho job)")
+                   ->check(CLI::Range(1, 10000));
+  band->excludes(from);
+}
+
 }  // namespace
 
 void RegisterRunCommands(CLI::App& app, CommandAction* run) {
@@ -242,6 +253,7 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
     CLI::App* cmd = app.add_subcommand(s.name, s.help);
     AddStageOptions(cmd, a.get(), s.needs_images, s.options);
     if (a->stage == "dense") AddDenseShareOptions(cmd, a.get());
+    if (a->stage == "ortho") AddOrthoShareOptions(cmd, a.get());
     cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
   }
   {
@@ -307,7 +319,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   // holder. Holding the lock, anything a killed run left half-written is
   // stale. A workflow's dense shares share the workspace (each writes its
   // own files): they leave the others' files in progress alone.
-  const bool share_job = !a.depth_share.empty() || !a.fuse_share.empty();
+  const bool share_job = !a.depth_share.empty() || !a.fuse_share.empty() || !a.band_share.empty();
   const DirectoryLock lock(a.output, share_job ? DirectoryLock::Mode::kShared : DirectoryLock::Mode::kExclusive);
   if (!share_job) {
     for (const std::filesystem::path& p : RemoveStaleTemporaryFiles(a.output)) {
@@ -323,9 +335,18 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   };
   if (!a.depth_share.empty()) share_of(a.depth_share, PipelineOptions::DenseStep::kDepthShare);
   if (!a.fuse_share.empty()) share_of(a.fuse_share, PipelineOptions::DenseStep::kFuseShare);
-  if (a.from_shares > 0) {
+  if (a.from_shares > 0 && a.stage == "dense") {
     o.dense_step = PipelineOptions::DenseStep::kFromShares;
     o.dense_shares = a.from_shares;
+  }
+  if (!a.band_share.empty()) {
+    o.ortho_step = PipelineOptions::OrthoStep::kBandShare;
+    o.ortho_share = std::stoi(a.band_share.substr(0, a.band_share.find('/'))) - 1;
+    o.ortho_shares = std::stoi(a.band_share.substr(a.band_share.find('/') + 1));
+  }
+  if (a.from_shares > 0 && a.stage == "ortho") {
+    o.ortho_step = PipelineOptions::OrthoStep::kFromShares;
+    o.ortho_shares = a.from_shares;
   }
   o.images_dir = a.images_dir;
   o.workspace = a.output;

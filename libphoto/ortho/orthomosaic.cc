@@ -269,6 +269,64 @@ class BlockToWorld {
 
 }  // namespace
 
+namespace {
+
+// The deliverable's compression, upper case; InvalidArgument for another.
+std::string Compression(const OrthoOptions& o) {
+  std::string compress = o.compress;
+  std::transform(compress.begin(), compress.end(), compress.begin(), ::toupper);
+  if (compress != "JPEG" && compress != "DEFLATE") {
+    throw InvalidArgument("orthomosaic: compression '" + o.compress + "' (expected JPEG or DEFLATE)");
+  }
+  return compress;
+}
+
+// The deliverable from the drawn RGBA raster (a GeoTIFF, or a VRT of bands):
+// a Cloud-Optimised GeoTIFF, or a tiled GeoTIFF with overviews; atomically.
+void WriteDeliverable(const std::filesystem::path& source, const OrthoOptions& o, const std::filesystem::path& path) {
+  const std::string compress = Compression(o);
+  const std::filesystem::path tmp = TemporaryPathFor(path);
+  std::vector<std::string> args;
+  const std::string quality = "QUALITY=" + std::to_string(o.jpeg_quality);
+  if (o.cog) {
+    args = {"-of", "COG", "-co", "COMPRESS=" + compress, "-co", "BIGTIFF=IF_SAFER", "-co", "OVERVIEWS=AUTO"};
+    if (compress == "JPEG") args.insert(args.end(), {"-co", quality});
+  } else if (compress == "JPEG") {
+    args = {"-of", "GTiff", "-b", "1", "-b", "2", "-b", "3", "-mask", "4", "-co", "TILED=YES", "-co", "COMPRESS=JPEG",
+            "-co", "PHOTOMETRIC=YCBCR", "-co", "JPEG_" + quality, "-co", "BIGTIFF=IF_SAFER"};
+  } else {
+    args = {"-of", "GTiff", "-co", "TILED=YES", "-co", "COMPRESS=DEFLATE", "-co", "BIGTIFF=IF_SAFER"};
+  }
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  GDALTranslateOptions* topts = GDALTranslateOptionsNew(argv.data(), nullptr);
+  GDALDatasetH src = GDALOpen(source.string().c_str(), GA_ReadOnly);
+  int usage_error = 0;
+  GDALDatasetH dst = src ? GDALTranslate(tmp.string().c_str(), src, topts, &usage_error) : nullptr;
+  GDALTranslateOptionsFree(topts);
+  const int width = src ? GDALGetRasterXSize(src) : 0;
+  if (src) GDALClose(src);
+  if (!dst) {
+    std::filesystem::remove(tmp);
+    throw IoError(tmp.string(), std::string("GDAL could not write the orthomosaic: ") + CPLGetLastErrorMsg());
+  }
+  if (!o.cog) {
+    int levels[] = {2, 4, 8, 16, 32};
+    int n = 0;
+    while (n < 5 && (width >> (n + 1)) >= 256) ++n;
+    if (n > 0 && GDALBuildOverviews(dst, "AVERAGE", n, levels, 0, nullptr, nullptr, nullptr) != CE_None) {
+      GDALClose(dst);
+      std::filesystem::remove(tmp);
+      throw IoError(tmp.string(), std::string("cannot build overviews: ") + CPLGetLastErrorMsg());
+    }
+  }
+  GDALClose(dst);
+  std::filesystem::rename(tmp, path);
+}
+
+}  // namespace
+
 void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int image)>& load_image,
                       const Raster& surface_in, const CrsToWorldFactory& to_world_factory, const OrthoOptions& o,
                       const std::filesystem::path& path, const ProgressCallback& progress, OrthoSummary* summary) {
@@ -276,11 +334,11 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
   if (o.tile_size < 64 || o.tile_margin < 0 || o.seam_cell_factor < 1 || o.blend_bands < 0) {
     throw InvalidArgument("orthomosaic: tile size >= 64, margin >= 0, seam factor >= 1, bands >= 0");
   }
-  std::string compress = o.compress;
-  std::transform(compress.begin(), compress.end(), compress.begin(), ::toupper);
-  if (compress != "JPEG" && compress != "DEFLATE") {
-    throw InvalidArgument("orthomosaic: compression '" + o.compress + "' (expected JPEG or DEFLATE)");
+  if (o.share_count < 1 || o.share_index < 0 || o.share_index >= o.share_count) {
+    throw InvalidArgument("orthomosaic: share " + std::to_string(o.share_index + 1) + " of " +
+                          std::to_string(o.share_count));
   }
+  Compression(o);  // checked before the work
   const unsigned threads = ThreadCount(o.num_threads);
 
   // The grid: the surface's extent with data, at the ortho resolution.
@@ -463,7 +521,27 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     v.cosine.release();
   }
 
-  // Output: an RGBA GeoTIFF written tile by tile.
+  // The tiles this call draws: all of them, or a share's run of tile rows.
+  const int T = o.tile_size, M = o.tile_margin;
+  const int tiles_x = (grid.width + T - 1) / T, tiles_y = (grid.height + T - 1) / T;
+  const int row0 = static_cast<int>(static_cast<long long>(tiles_y) * o.share_index / o.share_count);
+  const int row1 = static_cast<int>(static_cast<long long>(tiles_y) * (o.share_index + 1) / o.share_count);
+  const int band_y = row0 * T, band_height = std::min(grid.height, row1 * T) - band_y;
+  const size_t first_tile = static_cast<size_t>(row0) * tiles_x;
+  const size_t tiles = static_cast<size_t>(tiles_x) * (row1 - row0);
+  if (band_height <= 0) {  // an empty share (more shares than tile rows): no band
+    if (summary) {
+      *summary = OrthoSummary();
+      summary->width = grid.width;
+      summary->height = grid.height;
+      summary->surface_cells_interpolated = interpolated;
+      summary->band_y = band_y;
+    }
+    ReportProgress(progress, 1.0, "orthomosaic: no tile rows in this share");
+    return;
+  }
+
+  // Output: an RGBA GeoTIFF (the band) written tile by tile.
   GDALAllRegister();
   const std::filesystem::path work_dir = o.work_dir.empty() ? path.parent_path() : o.work_dir;
   // A temporary name (an interrupted run's is swept away), in the work folder.
@@ -472,9 +550,9 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
   const char* create_opts[] = {"TILED=YES", "BLOCKXSIZE=512", "BLOCKYSIZE=512", "COMPRESS=DEFLATE",
                                "BIGTIFF=IF_SAFER", "PHOTOMETRIC=RGB", "ALPHA=YES", nullptr};
   std::unique_ptr<GDALDataset> out(
-      gtiff->Create(build.string().c_str(), grid.width, grid.height, 4, GDT_Byte, const_cast<char**>(create_opts)));
+      gtiff->Create(build.string().c_str(), grid.width, band_height, 4, GDT_Byte, const_cast<char**>(create_opts)));
   if (!out) throw IoError(build.string(), std::string("cannot create: ") + CPLGetLastErrorMsg());
-  double gt[6] = {grid.x0, grid.res, 0.0, grid.y0, 0.0, -grid.res};
+  double gt[6] = {grid.x0, grid.res, 0.0, grid.y0 - band_y * grid.res, 0.0, -grid.res};
   out->SetGeoTransform(gt);
   if (!surface.wkt.empty()) out->SetProjection(surface.wkt.c_str());
   for (const auto& [key, value] : o.metadata) out->SetMetadataItem(key.c_str(), value.c_str());
@@ -482,14 +560,12 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
   std::mutex write_mutex;
 
   ImageCache cache(load_image, o.image_cache_bytes);
-  const int T = o.tile_size, M = o.tile_margin;
-  const int tiles_x = (grid.width + T - 1) / T, tiles_y = (grid.height + T - 1) / T;
-  const size_t tiles = static_cast<size_t>(tiles_x) * tiles_y;
   std::atomic<long long> cells_surface{0}, cells_filled{0};
   std::vector<std::atomic<char>> used(views.size());
   for (auto& u : used) u = 0;
   std::atomic<int> tiles_done{0};
-  ParallelFor(tiles, threads, [&](size_t t) {
+  ParallelFor(tiles, threads, [&](size_t share_tile) {
+    const size_t t = first_tile + share_tile;
     const cv::Rect tile(static_cast<int>(t % tiles_x) * T, static_cast<int>(t / tiles_x) * T, T, T);
     const cv::Rect inner = tile & cv::Rect(0, 0, grid.width, grid.height);
     const cv::Rect region = cv::Rect(inner.x - M, inner.y - M, inner.width + 2 * M, inner.height + 2 * M) &
@@ -631,7 +707,8 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     {
       std::lock_guard<std::mutex> lock(write_mutex);
       int bands[4] = {1, 2, 3, 4};
-      if (out->RasterIO(GF_Write, inner.x, inner.y, inner.width, inner.height, rgba.data, inner.width, inner.height,
+      if (out->RasterIO(GF_Write, inner.x, inner.y - band_y, inner.width, inner.height, rgba.data, inner.width,
+                        inner.height,
                         GDT_Byte, 4, bands, 4, static_cast<GSpacing>(rgba.step), 1, nullptr) != CE_None) {
         throw IoError(build.string(), std::string("cannot write a tile: ") + CPLGetLastErrorMsg());
       }
@@ -645,56 +722,58 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
   out->FlushCache();
   out.reset();
 
-  // The deliverable: a Cloud-Optimised GeoTIFF, or a tiled GeoTIFF with overviews.
-  ReportProgress(progress, 0.92, "orthomosaic: " + std::string(o.cog ? "Cloud-Optimised GeoTIFF" : "overviews"));
-  const std::filesystem::path tmp = TemporaryPathFor(path);
-  std::vector<std::string> args;
-  const std::string quality = "QUALITY=" + std::to_string(o.jpeg_quality);
-  if (o.cog) {
-    args = {"-of", "COG", "-co", "COMPRESS=" + compress, "-co", "BIGTIFF=IF_SAFER", "-co", "OVERVIEWS=AUTO"};
-    if (compress == "JPEG") args.insert(args.end(), {"-co", quality});
-  } else if (compress == "JPEG") {
-    args = {"-of", "GTiff", "-b", "1", "-b", "2", "-b", "3", "-mask", "4", "-co", "TILED=YES", "-co", "COMPRESS=JPEG",
-            "-co", "PHOTOMETRIC=YCBCR", "-co", "JPEG_" + quality, "-co", "BIGTIFF=IF_SAFER"};
-  } else {
-    args = {"-of", "GTiff", "-co", "TILED=YES", "-co", "COMPRESS=DEFLATE", "-co", "BIGTIFF=IF_SAFER"};
+  std::vector<int> images;
+  for (size_t k = 0; k < views.size(); ++k) {
+    if (used[k]) images.push_back(views[k].image);
   }
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  GDALTranslateOptions* topts = GDALTranslateOptionsNew(argv.data(), nullptr);
-  GDALDatasetH src = GDALOpen(build.string().c_str(), GA_ReadOnly);
-  int usage_error = 0;
-  GDALDatasetH dst = src ? GDALTranslate(tmp.string().c_str(), src, topts, &usage_error) : nullptr;
-  GDALTranslateOptionsFree(topts);
-  if (src) GDALClose(src);
-  if (!dst) {
-    std::filesystem::remove(build);
-    throw IoError(tmp.string(), std::string("GDAL could not write the orthomosaic: ") + CPLGetLastErrorMsg());
-  }
-  if (!o.cog) {
-    int levels[] = {2, 4, 8, 16, 32};
-    int n = 0;
-    while (n < 5 && (grid.width >> (n + 1)) >= 256) ++n;
-    if (n > 0 && GDALBuildOverviews(dst, "AVERAGE", n, levels, 0, nullptr, nullptr, nullptr) != CE_None) {
-      GDALClose(dst);
-      throw IoError(tmp.string(), std::string("cannot build overviews: ") + CPLGetLastErrorMsg());
-    }
-  }
-  GDALClose(dst);
-  std::filesystem::remove(build);
-  std::filesystem::rename(tmp, path);
-  ReportProgress(progress, 1.0, "orthomosaic: done");
   if (summary) {
     summary->width = grid.width;
     summary->height = grid.height;
     summary->tiles = static_cast<int>(tiles);
-    summary->images_used = static_cast<int>(std::count_if(used.begin(), used.end(), [](const auto& u) { return u != 0; }));
+    summary->images_used = static_cast<int>(images.size());
+    summary->images = images;
     summary->cells_with_surface = cells_surface;
     summary->cells_filled = cells_filled;
     summary->filled_fraction = cells_surface > 0 ? static_cast<double>(cells_filled) / cells_surface : 0.0;
     summary->surface_cells_interpolated = interpolated;
+    summary->band_y = band_y;
+    summary->band_height = band_height;
   }
+  if (o.share_count > 1) {  // a share's band, for AssembleOrthomosaic
+    std::filesystem::rename(build, path);
+    ReportProgress(progress, 1.0, "orthomosaic: band done");
+    return;
+  }
+  // The deliverable: a Cloud-Optimised GeoTIFF, or a tiled GeoTIFF with overviews.
+  ReportProgress(progress, 0.92, "orthomosaic: " + std::string(o.cog ? "Cloud-Optimised GeoTIFF" : "overviews"));
+  WriteDeliverable(build, o, path);
+  std::filesystem::remove(build);
+  ReportProgress(progress, 1.0, "orthomosaic: done");
+}
+
+void AssembleOrthomosaic(const std::vector<std::filesystem::path>& bands, const OrthoOptions& o,
+                         const std::filesystem::path& path) {
+  if (bands.empty()) throw InvalidArgument("orthomosaic: no band to assemble");
+  Compression(o);
+  GDALAllRegister();
+  const std::filesystem::path work_dir = o.work_dir.empty() ? path.parent_path() : o.work_dir;
+  const std::filesystem::path vrt = work_dir / (TemporaryPathFor(path).filename().string() + ".bands.vrt");
+  std::vector<std::string> names;
+  for (const auto& b : bands) names.push_back(b.string());
+  std::vector<const char*> inputs;
+  for (const auto& n : names) inputs.push_back(n.c_str());
+  int usage_error = 0;
+  GDALDatasetH mosaic = GDALBuildVRT(vrt.string().c_str(), static_cast<int>(inputs.size()), nullptr, inputs.data(),
+                                     nullptr, &usage_error);
+  if (!mosaic) throw IoError(vrt.string(), std::string("GDAL could not join the bands: ") + CPLGetLastErrorMsg());
+  GDALClose(mosaic);
+  try {
+    WriteDeliverable(vrt, o, path);
+  } catch (...) {
+    std::filesystem::remove(vrt);
+    throw;
+  }
+  std::filesystem::remove(vrt);
 }
 
 }  // namespace aerotri

@@ -34,6 +34,7 @@
 #include <map>
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 #include "libphoto/base/progress.h"
 #include "libphoto/export/raster.h"
@@ -60,6 +61,15 @@ struct OrthoOptions {
   std::size_t image_cache_bytes = std::size_t{768} << 20;
   std::filesystem::path work_dir;  // for the intermediate GeoTIFF; empty: beside the output
   std::map<std::string, std::string> metadata;  // GeoTIFF metadata items
+  // A share of the drawing, for a workflow that runs it as separate jobs
+  // (aerotri split): the share_index-th (from 0) of share_count runs of tile
+  // rows. Views, seams and exposure are the whole survey's (every share
+  // computes them alike), so the bands join without a seam; the share writes
+  // its band to the path as a plain tiled GeoTIFF (RGBA, DEFLATE), nothing
+  // when its run is empty (summary.band_height 0). AssembleOrthomosaic makes
+  // the deliverable of the bands.
+  int share_index = 0;
+  int share_count = 1;
 };
 
 struct OrthoSummary {
@@ -70,6 +80,8 @@ struct OrthoSummary {
   long long cells_with_surface = 0;
   long long cells_filled = 0;
   long long surface_cells_interpolated = 0;  // holes of the surface filled for drawing
+  std::vector<int> images;         // the photos (model image indices) that colour a cell
+  int band_y = 0, band_height = 0;  // a share's band: rows of the whole grid
 };
 
 // CRS (x, y, z) to the model's world frame. The factory is called once per
@@ -85,5 +97,11 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
                       const Raster& surface, const CrsToWorldFactory& to_world, const OrthoOptions& options,
                       const std::filesystem::path& path, const ProgressCallback& progress = nullptr,
                       OrthoSummary* summary = nullptr);
+
+// The deliverable (options.cog, compress, jpeg_quality) from the bands the
+// shares of one orthomosaic wrote (empty ones left out), in any order:
+// the file WriteOrthomosaic writes in one call, cell for cell.
+void AssembleOrthomosaic(const std::vector<std::filesystem::path>& bands, const OrthoOptions& options,
+                         const std::filesystem::path& path);
 
 }  // namespace aerotri

@@ -12,6 +12,7 @@
 #include <map>
 #include <optional>
 #include <regex>
+#include <set>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -660,7 +661,7 @@ void ReadFusedPoints(const fs::path& path, std::uint64_t points, std::size_t bat
       size != 8 + points * kFusedRecord) {
     throw IoError(path.string(), "not the " + std::to_string(points) + " fused points its record names (" +
                                      (ec ? std::string("unreadable") : std::to_string(size) + " bytes") +
-                                     "); run its fusion share again");
+                                     "); run its fusion share again (--fuse-share K/N --force)");
   }
   std::vector<char> buffer;
   std::vector<Eigen::Vector3d> xyz;
@@ -916,9 +917,12 @@ bool RunDenseStage(const PipelineOptions& o) {
         ProgressPart(dense_progress, 0.0, 0.8), sink, &summary);
   }
   if (tiles) tiles->Finish();
-  if (from_shares) {
-    for (int k = 0; k < o.dense_shares; ++k) fs::remove(ShareFile(o, "fused", k, ".pts"));  // in the tiles now
-  }
+  // The shares' fused points, once the products are written (until then an
+  // interrupted products step reads them again).
+  const auto remove_fused_points = [&]() {
+    if (!from_shares) return;
+    for (int k = 0; k < o.dense_shares; ++k) fs::remove(ShareFile(o, "fused", k, ".pts"));
+  };
   // Fused: the tiles hold the cloud now, and the depth maps (25 GB at 1,000
   // photos) need not share the disk with the LAS and PLY being written. An
   // interruption from here on recomputes them.
@@ -938,6 +942,7 @@ bool RunDenseStage(const PipelineOptions& o) {
     WriteTextFileAtomically(o.workspace / "dense.json",
                             json({{"points", 0}, {"pairs", summary.pairs}, {"skipped", why}}).dump(2) + "\n");
     if (tiles) tiles->Remove();
+    remove_fused_points();
     RecordTiming(o, "dense", std::chrono::duration<double>(Clock::now() - start).count());
     return false;
   }
@@ -1009,6 +1014,7 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"options", DenseFingerprint(o)},
                       {"file_bytes", file_bytes}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
+  remove_fused_points();
   fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
   Log(o, "dense: " + std::to_string(points) + " points at " + std::to_string(cloud_resolution) +
              " m; DSM " + std::to_string(dsm_info["width"].get<int>()) + " x " +
@@ -1102,7 +1108,8 @@ bool RunOrthoStage(const PipelineOptions& o) {
   json fingerprint = OrthoFingerprint(o);
   fingerprint["surface"] = ContentHash(surface_path);
   fingerprint["sparse"] = ContentHash(o.workspace / "georeferenced" / "images.txt");
-  if (fs::exists(path) && fs::exists(record) && !o.force) {
+  // (A band is drawn when asked for: its record, not ortho.tif, says it is done.)
+  if (fs::exists(path) && fs::exists(record) && !o.force && o.ortho_step != PipelineOptions::OrthoStep::kBandShare) {
     const json recorded = ReadJson(record, "ortho");
     const std::string changed = FingerprintChanges(recorded.value("options", json()), fingerprint);
     std::error_code ec;
@@ -1113,6 +1120,25 @@ bool RunOrthoStage(const PipelineOptions& o) {
       return false;
     }
     Log(o, "ortho: " + (changed.empty() ? std::string("ortho.tif damaged since it was written") : "inputs changed (" + changed + ")") + ": rerunning");
+  }
+  using OrthoStep = PipelineOptions::OrthoStep;
+  const bool band_step = o.ortho_step == OrthoStep::kBandShare, from_shares = o.ortho_step == OrthoStep::kFromShares;
+  // A workflow's bands: OUTPUT/ortho_parts/band_K_of_N.tif and .json.
+  const auto band_file = [&](int k, const char* ext) {
+    return o.workspace / "ortho_parts" /
+           ("band_" + std::to_string(k + 1) + "_of_" + std::to_string(o.ortho_shares) + ext);
+  };
+  // A band's record when it was drawn from this surface and model under these options.
+  const auto current_band = [&](int k) -> std::optional<json> {
+    if (!fs::exists(band_file(k, ".json"))) return std::nullopt;
+    json r = ReadJson(band_file(k, ".json"), "ortho");
+    if (!FingerprintChanges(r.value("options", json()), fingerprint).empty()) return std::nullopt;
+    return r;
+  };
+  if (band_step && !o.force && current_band(o.ortho_share)) {
+    Log(o, "ortho: band " + std::to_string(o.ortho_share + 1) + " of " + std::to_string(o.ortho_shares) +
+               ": done already (" + band_file(o.ortho_share, ".json").string() + ")");
+    return false;
   }
   const auto start = BeginStage();
   const json report = ReadJson(o.workspace / "report.json", "georeference");
@@ -1143,9 +1169,73 @@ bool RunOrthoStage(const PipelineOptions& o) {
     return [crs, frame](const Eigen::Vector3d& xyz) { return frame.EnuFromGeodetic(crs->ToGeodetic(xyz)); };
   };
   OrthoSummary summary;
-  WriteOrthomosaic(
-      model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, surface,
-      to_world, oo, path, StageProgress(o, "ortho"), &summary);
+  if (band_step) {
+    // One band of the workflow's orthomosaic; the deliverable is the last job's.
+    fs::remove(record);
+    fs::remove(o.workspace / "report.html");
+    fs::create_directories(o.workspace / "ortho_parts");
+    const int k = o.ortho_share;
+    oo.share_index = k;
+    oo.share_count = o.ortho_shares;
+    fs::remove(band_file(k, ".tif"));
+    WriteOrthomosaic(
+        model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, surface,
+        to_world, oo, band_file(k, ".tif"), StageProgress(o, "ortho"), &summary);
+    json images = json::array();
+    for (int i : summary.images) images.push_back(model.images[i].name);
+    const json band = {{"share", k + 1},
+                       {"shares", o.ortho_shares},
+                       {"band", summary.band_height > 0},
+                       {"band_y", summary.band_y},
+                       {"band_height", summary.band_height},
+                       {"width", summary.width},
+                       {"height", summary.height},
+                       {"images", images},
+                       {"cells_with_surface", summary.cells_with_surface},
+                       {"cells_filled", summary.cells_filled},
+                       {"surface_cells_interpolated", summary.surface_cells_interpolated},
+                       {"resolution_m", oo.resolution_m},
+                       {"wall_s", std::chrono::duration<double>(Clock::now() - start).count()},
+                       {"peak_rss_mb", PeakRssMb()},
+                       {"options", fingerprint}};
+    WriteTextFileAtomically(band_file(k, ".json"), band.dump(2) + "\n");
+    Log(o, "ortho: band " + std::to_string(k + 1) + " of " + std::to_string(o.ortho_shares) + ": " +
+               std::to_string(summary.band_height) + " rows from " + std::to_string(summary.images.size()) +
+               " photos");
+    return true;
+  }
+  if (from_shares) {
+    // The bands, in order; every one drawn from this surface and model.
+    std::vector<fs::path> bands;
+    std::set<std::string> images;
+    for (int k = 0; k < o.ortho_shares; ++k) {
+      const std::optional<json> r = current_band(k);
+      if (!r) {
+        throw InvalidArgument(band_file(k, ".json").string() +
+                              (fs::exists(band_file(k, ".json")) ? ": drawn from another surface, model or options"
+                                                                 : ": missing") +
+                              "; run aerotri ortho -o " + o.workspace.string() + " --band-share " +
+                              std::to_string(k + 1) + "/" + std::to_string(o.ortho_shares) + " first");
+      }
+      if (r->value("band", false)) bands.push_back(band_file(k, ".tif"));
+      for (const auto& name : r->value("images", json::array())) images.insert(name.get<std::string>());
+      summary.width = r->value("width", 0);
+      summary.height = r->value("height", 0);
+      summary.cells_with_surface += r->value("cells_with_surface", 0LL);
+      summary.cells_filled += r->value("cells_filled", 0LL);
+      summary.surface_cells_interpolated = r->value("surface_cells_interpolated", 0LL);
+    }
+    summary.images_used = static_cast<int>(images.size());
+    summary.filled_fraction = summary.cells_with_surface > 0
+                                  ? static_cast<double>(summary.cells_filled) / summary.cells_with_surface
+                                  : 0.0;
+    ReportProgress(StageProgress(o, "ortho"), 0.0, "orthomosaic: joining " + std::to_string(bands.size()) + " bands");
+    AssembleOrthomosaic(bands, oo, path);
+  } else {
+    WriteOrthomosaic(
+        model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, surface,
+        to_world, oo, path, StageProgress(o, "ortho"), &summary);
+  }
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const json out = {{"ortho",
                      {{"file", "ortho.tif"},
@@ -1165,6 +1255,9 @@ bool RunOrthoStage(const PipelineOptions& o) {
                     {"options", fingerprint},
                     {"file_bytes", {{"ortho.tif", fs::file_size(path)}}}};
   WriteTextFileAtomically(record, out.dump(2) + "\n");
+  if (from_shares) {
+    for (int k = 0; k < o.ortho_shares; ++k) fs::remove(band_file(k, ".tif"));  // in ortho.tif now
+  }
   fs::remove(o.workspace / "report.html");  // the report shows the ortho: it reruns
   Log(o, "ortho: " + std::to_string(summary.width) + " x " + std::to_string(summary.height) + " at " +
              std::to_string(oo.resolution_m) + " m from " + std::to_string(summary.images_used) + " photos, " +

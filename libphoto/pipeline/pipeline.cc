@@ -490,6 +490,10 @@ void PipelineOptions::Check() const {
   CheckOption(num_threads >= 0, "--threads", num_threads, "0 (all cores) or more");
   CheckOption(dense_shares >= 1 && dense_shares <= 10000, "the number of dense shares", dense_shares,
               "1 to 10000");
+  CheckOption(ortho_shares >= 1 && ortho_shares <= 10000, "the number of ortho shares", ortho_shares,
+              "1 to 10000");
+  CheckOption(ortho_share >= 0 && ortho_share < ortho_shares, "the ortho share", ortho_share + 1,
+              "1 to the number of shares (" + std::to_string(ortho_shares) + ")");
   CheckOption(dense_share >= 0 && dense_share < dense_shares, "the dense share", dense_share + 1,
               "1 to the number of shares (" + std::to_string(dense_shares) + ")");
   CheckOption(gps_sigma_h_m > 0.0 && std::isfinite(gps_sigma_h_m), "--gps-sigma-h", gps_sigma_h_m,

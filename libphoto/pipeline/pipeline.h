@@ -101,6 +101,14 @@ struct PipelineOptions {
   std::string ortho_surface = "dsm";  // or "dtm"
   std::string ortho_compress = "JPEG";  // or "DEFLATE"
   bool ortho_cog = true;
+  // The ortho stage as a workflow's jobs (aerotri split): the band of tile
+  // rows of share k of n (kBandShare; several at once on one workspace),
+  // then the deliverable from the n bands (kFromShares): the same file as
+  // kWhole, all in one.
+  enum class OrthoStep { kWhole, kBandShare, kFromShares };
+  OrthoStep ortho_step = OrthoStep::kWhole;
+  int ortho_share = 0;   // k, from 0
+  int ortho_shares = 1;  // n
 
   // Who asked: recorded in report.json "provenance" with the date and the
   // effective options (set by the command-line tool; empty from a library caller).

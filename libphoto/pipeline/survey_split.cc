@@ -203,7 +203,7 @@ void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>&
     << "PARTS = [";
   for (size_t k = 0; k < parts.size(); ++k) s << (k ? ", " : "") << "\"" << parts[k].name << "\"";
   s << "]\n"
-    << "SHARES = list(range(1, " << shares << " + 1))  # of the dense stage\n"
+    << "SHARES = list(range(1, " << shares << " + 1))  # of the dense and ortho stages\n"
     << "wildcard_constraints:\n    share=\"[0-9]+\"\n\n"
     << "rule all:\n    input: \"report.html\"\n\n"
     << "rule part_sparse:\n"
@@ -251,10 +251,19 @@ void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>&
     << "        expand(\"dense_parts/fused_{share}_of_" << shares << ".json\", share=SHARES)\n"
     << "    output: \"dsm.tif\"\n"
     << "    shell: \"" << exe << " dense -o . --quiet" << threads << " --from-shares " << shares << "\"\n\n"
-    << "rule ortho:\n"
+    // The orthomosaic in bands of tile rows, each an independent job (the
+    // seams and exposure are the whole survey's, computed alike by each),
+    // then joined into ortho.tif.
+    << "rule ortho_band:\n"
     << "    input: \"dsm.tif\"\n"
+    << "    output: temp(\"ortho_parts/band_{share}_of_" << shares << ".json\")\n"
+    << "    threads: 2\n"
+    << "    shell: \"" << exe << " ortho -o . --quiet --threads {threads} --band-share {wildcards.share}/" << shares
+    << "\"\n\n"
+    << "rule ortho:\n"
+    << "    input: expand(\"ortho_parts/band_{share}_of_" << shares << ".json\", share=SHARES)\n"
     << "    output: \"ortho.tif\"\n"
-    << "    shell: \"" << exe << " ortho -o . --quiet" << threads << "\"\n\n"
+    << "    shell: \"" << exe << " ortho -o . --quiet" << threads << " --from-shares " << shares << "\"\n\n"
     << "rule report:\n"
     << "    input: \"ortho.tif\"\n"
     << "    output: \"report.html\"\n"
