@@ -309,7 +309,11 @@ GeoreferenceOptions GeoreferenceStageOptions(const PipelineOptions& o, const Ing
 
 bool RunGeoreferenceStage(const PipelineOptions& o) {
   const fs::path report_path = o.workspace / "report.json";
-  if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") && !o.force &&
+  // georeferenced/ too: what the dense stage reads (and a workflow's
+  // georeference step declares as its output, which Snakemake removes
+  // before it reruns the step).
+  if (fs::exists(report_path) && fs::exists(o.workspace / "sparse") &&
+      fs::exists(o.workspace / "georeferenced" / "images.txt") && !o.force &&
       StageIsCurrent(o, "georeference", report_path, "georeference_options", GeoreferenceFingerprint(o))) {
     return false;
   }
