@@ -328,21 +328,22 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   }
   PipelineOptions o;
   // K/N (checked by ShareValidator) into the share (from 0) and the count.
-  const auto share_of = [&o](const std::string& kn, PipelineOptions::DenseStep step) {
-    o.dense_step = step;
-    o.dense_share = std::stoi(kn.substr(0, kn.find('/'))) - 1;
-    o.dense_shares = std::stoi(kn.substr(kn.find('/') + 1));
+  const auto share_of = [](const std::string& kn, int* share, int* shares) {
+    *share = std::stoi(kn.substr(0, kn.find('/'))) - 1;
+    *shares = std::stoi(kn.substr(kn.find('/') + 1));
   };
-  if (!a.depth_share.empty()) share_of(a.depth_share, PipelineOptions::DenseStep::kDepthShare);
-  if (!a.fuse_share.empty()) share_of(a.fuse_share, PipelineOptions::DenseStep::kFuseShare);
+  if (!a.depth_share.empty() || !a.fuse_share.empty()) {
+    o.dense_step = a.depth_share.empty() ? PipelineOptions::DenseStep::kFuseShare
+                                         : PipelineOptions::DenseStep::kDepthShare;
+    share_of(a.depth_share.empty() ? a.fuse_share : a.depth_share, &o.dense_share, &o.dense_shares);
+  }
   if (a.from_shares > 0 && a.stage == "dense") {
     o.dense_step = PipelineOptions::DenseStep::kFromShares;
     o.dense_shares = a.from_shares;
   }
   if (!a.band_share.empty()) {
     o.ortho_step = PipelineOptions::OrthoStep::kBandShare;
-    o.ortho_share = std::stoi(a.band_share.substr(0, a.band_share.find('/'))) - 1;
-    o.ortho_shares = std::stoi(a.band_share.substr(a.band_share.find('/') + 1));
+    share_of(a.band_share, &o.ortho_share, &o.ortho_shares);
   }
   if (a.from_shares > 0 && a.stage == "ortho") {
     o.ortho_step = PipelineOptions::OrthoStep::kFromShares;
