@@ -185,6 +185,76 @@ TEST(BundleAdjuster, RejectsGrossOutliersAndSolvesAgain) {
   EXPECT_LT(summary.final_rms_px, 1.05 * o.pixel_noise_px * std::sqrt(2.0));
 }
 
+// The robust loss screens and least squares estimates: with blunders among
+// 0.5 px noise (half the residuals' Huber weight below one), the result is
+// the least-squares estimate of the observations without the blunders, not
+// the Huber estimate, and every solve after the screening converges.
+TEST(BundleAdjuster, ScreeningThenLeastSquaresGivesTheCleanLeastSquaresEstimate) {
+  const SyntheticSurveyOptions o = SmallSurvey(16);
+  const SparseModel clean = MakeSyntheticSurvey(o).observed;
+  SparseModel blundered = clean;
+  std::mt19937 rng(16);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Observation> kept;
+  int injected = 0;
+  for (Observation& obs : blundered.observations) {
+    if (blundered.points[obs.point].role == PointRole::kTie && u(rng) < 0.01) {
+      obs.xy += Eigen::Vector2d(40.0 + 40.0 * u(rng), 30.0 * u(rng));
+      ++injected;
+    } else {
+      kept.push_back(obs);
+    }
+  }
+  ASSERT_GT(injected, 50);
+  SparseModel screened_truth = clean;
+  screened_truth.observations = kept;  // what a perfect screening keeps
+
+  BundleOptions options;
+  options.loss = LossType::kHuber;
+  options.loss_scale_px = 1.0;
+  options.outlier_threshold_px = 4.0;
+  options.refine_intrinsics = IntrinsicsRefinement::kFocal;
+  options.function_tolerance = 1e-12;
+  options.parameter_tolerance = 1e-12;
+  options.max_iterations = 200;
+
+  BundleOptions screen = options;
+  screen.least_squares_after_screening = true;
+  SparseModel a = blundered;
+  const BundleSummary sa = AdjustBundle(&a, screen);
+  SCOPED_TRACE(sa.BriefReport());
+
+  BundleOptions plain = options;
+  plain.loss = LossType::kNone;
+  SparseModel b = screened_truth;
+  const BundleSummary sb = AdjustBundle(&b, plain);
+
+  SparseModel c = blundered;
+  const BundleSummary sc = AdjustBundle(&c, options);  // Huber throughout
+
+  ASSERT_GE(sa.solves.size(), 2u);
+  EXPECT_EQ(sa.solves.front().kind, "robust screening (huber)");
+  const std::string& last = sa.solves.back().kind;
+  EXPECT_TRUE(last == "least squares" || last.rfind("outlier round", 0) == 0) << last;
+  EXPECT_TRUE(sa.converged) << sa.termination;
+  EXPECT_EQ(sa.outliers_removed, injected);
+  EXPECT_EQ(sc.outliers_removed, injected);
+
+  double to_ls = 0.0, huber_to_ls = 0.0;
+  const std::vector<Eigen::Vector3d> ca = Centres(a), cb = Centres(b), cc = Centres(c);
+  for (size_t i = 0; i < ca.size(); ++i) {
+    to_ls = std::max(to_ls, (ca[i] - cb[i]).norm());
+    huber_to_ls = std::max(huber_to_ls, (cc[i] - cb[i]).norm());
+  }
+  std::printf("screened vs clean least squares %.3g m; Huber vs clean least squares %.3g m\n", to_ls,
+              huber_to_ls);
+  // The Huber estimate differs from least squares by a fraction of the
+  // cameras' precision; the screened one by the solver's tolerance.
+  EXPECT_GT(huber_to_ls, 1e-4);
+  EXPECT_LT(to_ls, 0.01 * huber_to_ls);
+  EXPECT_NEAR(sa.final_cost, sb.final_cost, 1e-6 * sb.final_cost);
+}
+
 TEST(BundleAdjuster, IntrinsicsRefinementChoiceIsRespected) {
   const SyntheticSurveyOptions o = SmallSurvey(14);
   for (IntrinsicsRefinement r : {IntrinsicsRefinement::kNone, IntrinsicsRefinement::kFocal,

@@ -1220,7 +1220,7 @@ bool BundleOptions::Validate(std::string* error) const {
     return fail("optimality gap must be in [0, 1) (0 = off), got " + std::to_string(optimality_gap));
   }
   if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) ||
-      !(parameter_tolerance >= 0.0)) {
+      !(parameter_tolerance >= 0.0) || !(screening_function_tolerance >= 0.0)) {
     return fail("solver tolerances must be >= 0");
   }
   if (!(outlier_threshold_px >= 0.0)) {
@@ -1298,7 +1298,10 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     }
   }
   // A solve's figures into the summary (its counts, σ0, cost and times).
-  auto absorb = [&](const RoundResult& result, int round) {
+  auto iterations_of = [](const RoundResult& result) {
+    return std::max(static_cast<int>(result.ceres.iterations.size()) - 1, 0);
+  };
+  auto absorb = [&](const RoundResult& result, int round, const std::string& kind) {
     summary.gps_offset_estimated = result.offset_estimated;
     summary.gps_drift_estimated = result.drift_estimated;
     summary.gps_drift_m_per_s = gps_drift;
@@ -1315,12 +1318,12 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
       summary.linear_solver = result.solver;
     }
     summary.final_cost = result.ceres.final_cost;
-    summary.iterations += static_cast<int>(result.ceres.iterations.size()) > 0
-                              ? static_cast<int>(result.ceres.iterations.size()) - 1
-                              : 0;
+    summary.iterations += iterations_of(result);
     summary.termination = std::string(ceres::TerminationTypeToString(
                               result.ceres.termination_type)) +
                           ": " + result.ceres.message;
+    summary.solves.push_back({kind, iterations_of(result), result.ceres.initial_cost, result.ceres.final_cost,
+                              result.ceres.total_time_in_seconds, summary.termination});
     summary.converged = result.ceres.termination_type == ceres::CONVERGENCE;
     summary.setup_time_s += result.setup_s;
     summary.solve_time_s += result.ceres.total_time_in_seconds;
@@ -1333,8 +1336,23 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     summary.num_skipped_points = result.skipped_points;
     summary.num_camera_groups = 0;
   };
+  // Screening (robust, to find the blunders) then least squares, or the
+  // robust loss throughout.
+  const bool screening =
+      options.least_squares_after_screening && options.loss != LossType::kNone && max_rounds > 0;
+  BundleOptions screen = options;
+  screen.function_tolerance = std::max(options.function_tolerance, options.screening_function_tolerance);
+  BundleOptions least_squares = options;
+  least_squares.loss = LossType::kNone;
+  const BundleOptions& estimate = screening ? least_squares : options;
+  bool estimated = false;  // the last solve was one of `estimate`
   for (int round = 0;; ++round) {
-    absorb(SolveOnce(model, options, round, &gps_offsets, &gps_drift), round);
+    const bool robust_screen = screening && round == 0;
+    absorb(SolveOnce(model, robust_screen ? screen : estimate, round, &gps_offsets, &gps_drift), round,
+           robust_screen ? std::string("robust screening (") + ToString(options.loss) + ")"
+           : round == 0  ? std::string("first")
+                         : "outlier round " + std::to_string(round));
+    estimated = !robust_screen;
     if (round >= max_rounds) break;
     // Reject observations beyond the threshold and solve again.
     const std::vector<double> errors = ReprojectionErrors(*model);
@@ -1358,6 +1376,12 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     summary.outliers_removed += removed;
     summary.outlier_rounds = round + 1;
   }
+  if (!estimated) {
+    // The screening found no more blunders (or the rounds ran out): the
+    // estimate, by least squares on what it kept.
+    const int round = summary.outlier_rounds + 1;
+    absorb(SolveOnce(model, estimate, round, &gps_offsets, &gps_drift), round, "least squares");
+  }
 
   if (options.compute_precision) {
     summary.sigma0_stated = summary.sigma0;
@@ -1365,8 +1389,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     // The precision pass; with variance-component estimation, each group's
     // factor rescales its sigmas and the block is solved again (Förstner's
     // iteration), the last pass at the weights it settled on.
-    BundleOptions weighted = options;
-    int round = summary.outlier_rounds + 1;
+    BundleOptions weighted = estimate;
+    int round = summary.outlier_rounds + 2;
     const std::array<double, kNumObservationGroups> stated = StatedSigmas(*model, options);
     RoundResult pass;
     // Which groups are estimated is decided at the stated weights: a group
@@ -1407,7 +1431,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
       }
       weighted.sigma_scale = next;
       const int this_round = round++;
-      absorb(SolveOnce(model, weighted, this_round, &gps_offsets, &gps_drift), this_round);
+      absorb(SolveOnce(model, weighted, this_round, &gps_offsets, &gps_drift), this_round,
+             "variance components " + std::to_string(iteration + 1));
       summary.variance_component_iterations = iteration + 1;
     }
     summary.precision = std::move(pass.posterior);

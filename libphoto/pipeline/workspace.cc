@@ -348,6 +348,7 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"refine", refine},
           {"loss", ToString(g.bundle.loss)},
           {"loss_scale_px", g.bundle.loss_scale_px},
+          {"loss_use", g.bundle.least_squares_after_screening ? "screening" : "every solve"},
           {"outlier_threshold_px", g.bundle.outlier_threshold_px},
           {"tie_sigma_px", g.bundle.observation_sigma_px},
           {"mark_sigma_px", g.bundle.mark_sigma_px},

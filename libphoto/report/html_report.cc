@@ -261,7 +261,18 @@ std::string AdjustmentStatistics(const json& r) {
       << Num(Get(c, "z", NAN), 2) << (c.value("consistent", false) ? " (consistent)" : " (inconsistent)")
       << "</td></tr>";
   }
-  h << "<tr><td>termination</td><td>" << Escape(Text(adj, "termination", "")) << "</td></tr></table>";
+  h << "<tr><td>termination</td><td>" << Escape(Text(adj, "termination", "")) << "</td></tr>";
+  if (adj.contains("solves") && !adj["solves"].empty()) {
+    // The solves in order: the robust screening, the least-squares estimate,
+    // outlier rounds and variance-component re-weightings.
+    std::string list;
+    for (const json& s : adj["solves"]) {
+      list += (list.empty() ? "" : "; ") + Text(s, "kind", "") + " " + std::to_string(s.value("iterations", 0)) +
+              " it., " + Num(Get(s, "time_s", NAN), 1) + " s";
+    }
+    h << "<tr><td>solves</td><td>" << Escape(list) << "</td></tr>";
+  }
+  h << "</table>";
   if (adj.contains("variance_components")) {
     const json& vc = adj["variance_components"];
     const bool estimated = vc.value("estimated", false);

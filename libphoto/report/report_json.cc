@@ -123,6 +123,16 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
   j["final_rms_px"] = s.final_rms_px;
   j["iterations"] = s.iterations;
   j["termination"] = s.termination;
+  nlohmann::json solves = nlohmann::json::array();
+  for (const BundleSummary::Solve& solve : s.solves) {
+    solves.push_back({{"kind", solve.kind},
+                      {"iterations", solve.iterations},
+                      {"initial_cost", solve.initial_cost},
+                      {"final_cost", solve.final_cost},
+                      {"time_s", solve.time_s},
+                      {"termination", solve.termination}});
+  }
+  j["solves"] = solves;
   j["converged"] = s.converged;
   j["linear_solver"] = s.linear_solver;
   // The stochastic model's check: r sigma0^2 follows chi^2(r) when the stated
