@@ -235,8 +235,16 @@ TEST(HtmlReport, VarianceComponentsPerGroup) {
          {"sigma0", 1.0}, {"scale", 0.3}, {"estimated_sigma", 0.3}, {"estimated", true}},
         {{"group", "control_points"}, {"unit", "m"}, {"rows", 24}, {"redundancy", 6.3}, {"stated_sigma", 0.024},
          {"sigma0", 0.32}, {"scale", 1.0}, {"estimated_sigma", 0.0077}, {"estimated", false}}}}};
+  r["adjustment"]["solves"] = {
+      {{"kind", "robust screening (huber)"}, {"iterations", 6}, {"time_s", 26.8}},
+      {{"kind", "least squares"}, {"iterations", 2}, {"time_s", 12.7}},
+      {{"kind", "variance components 1"}, {"iterations", 2}, {"time_s", 12.6}}};
   const std::string html = RenderHtmlReport(r, "");
   EXPECT_NE(html.find("re-solved 2 time(s)); &sigma;<sub>0</sub> with the stated sigmas was 0.310."), std::string::npos);
+  EXPECT_NE(html.find("<tr><td>solves</td><td>robust screening (huber) 6 it., 26.8 s; least squares 2 it., 12.7 s; "
+                      "variance components 1 2 it., 12.6 s</td></tr>"),
+            std::string::npos)
+      << html.substr(html.find("Adjustment statistics"), 900);
   EXPECT_NE(html.find("<tr><td>tie_points</td><td>67564</td><td>58276.0</td><td>1.000 px</td><td>1.000</td>"
                       "<td>0.300 px</td><td>0.300 px</td></tr>"),
             std::string::npos)

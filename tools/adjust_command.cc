@@ -77,7 +77,9 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
                   "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
                   "file's CRS, else the UTM zone of the survey centre");
   AddAdjustmentPolicyOptions(cmd, &a->policy);
-  cmd->add_option("--loss", a->loss, "Robust loss on reprojection residuals")
+  cmd->add_option("--loss", a->loss,
+                  "Robust loss on reprojection residuals of the screening solve that finds the blunders (the "
+                  "estimate is least squares on the observations it keeps); none: least squares throughout")
       ->check(CLI::IsMember({"none", "huber", "cauchy", "tukey"}))->capture_default_str();
   cmd->add_option("--loss-scale", a->loss_scale_px, "Robust loss scale (pixels)")
       ->check(CLI::PositiveNumber)->capture_default_str();

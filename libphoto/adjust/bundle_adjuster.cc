@@ -1345,16 +1345,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   BundleOptions least_squares = options;
   least_squares.loss = LossType::kNone;
   const BundleOptions& estimate = screening ? least_squares : options;
-  bool estimated = false;  // the last solve was one of `estimate`
-  for (int round = 0;; ++round) {
-    const bool robust_screen = screening && round == 0;
-    absorb(SolveOnce(model, robust_screen ? screen : estimate, round, &gps_offsets, &gps_drift), round,
-           robust_screen ? std::string("robust screening (") + ToString(options.loss) + ")"
-           : round == 0  ? std::string("first")
-                         : "outlier round " + std::to_string(round));
-    estimated = !robust_screen;
-    if (round >= max_rounds) break;
-    // Reject observations beyond the threshold and solve again.
+  // Rejects tie-point observations beyond the threshold; how many.
+  auto reject = [&]() {
     const std::vector<double> errors = ReprojectionErrors(*model);
     std::vector<Observation> kept;
     kept.reserve(model->observations.size());
@@ -1371,16 +1363,27 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
         kept.push_back(obs);
       }
     }
-    if (removed == 0) break;
-    model->observations.swap(kept);
+    if (removed > 0) model->observations.swap(kept);
     summary.outliers_removed += removed;
-    summary.outlier_rounds = round + 1;
+    return removed;
+  };
+  int solve = 0;  // the solves so far
+  if (screening) {
+    absorb(SolveOnce(model, screen, solve, &gps_offsets, &gps_drift), solve,
+           std::string("robust screening (") + ToString(options.loss) + ")");
+    ++solve;
+    if (reject() > 0) summary.outlier_rounds = 1;
   }
-  if (!estimated) {
-    // The screening found no more blunders (or the rounds ran out): the
-    // estimate, by least squares on what it kept.
-    const int round = summary.outlier_rounds + 1;
-    absorb(SolveOnce(model, estimate, round, &gps_offsets, &gps_drift), round, "least squares");
+  // The estimate; after it, rejection and a re-solve while observations
+  // go beyond the threshold (max_rounds times).
+  for (int round = 0;; ++round) {
+    absorb(SolveOnce(model, estimate, solve, &gps_offsets, &gps_drift), solve,
+           round > 0    ? "outlier round " + std::to_string(round)
+           : screening  ? std::string("least squares")
+                        : std::string("first"));
+    ++solve;
+    if (round >= max_rounds || reject() == 0) break;
+    ++summary.outlier_rounds;
   }
 
   if (options.compute_precision) {
@@ -1390,7 +1393,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
     // factor rescales its sigmas and the block is solved again (Förstner's
     // iteration), the last pass at the weights it settled on.
     BundleOptions weighted = estimate;
-    int round = summary.outlier_rounds + 2;
+    int round = solve;
     const std::array<double, kNumObservationGroups> stated = StatedSigmas(*model, options);
     RoundResult pass;
     // Which groups are estimated is decided at the stated weights: a group
