@@ -362,10 +362,14 @@ struct BundleSummary {
   double final_rms_px = 0.0;
   int iterations = 0;           // summed over every solve below
   int outlier_rounds = 0;
-  // Every solve in order: the first, one per outlier round, one per
-  // variance-component re-weighting. What each cost, and why it stopped.
+  // Every solve in order: the robust screening (least_squares_after_screening)
+  // and the least-squares estimate, or the first solve; one per outlier
+  // round; one per variance-component re-weighting. What each cost, and why
+  // it stopped.
   struct Solve {
-    std::string kind;  // "first", "outlier round N", "variance components N"
+    // "robust screening (huber)", "least squares", "first", "outlier round N",
+    // "variance components N"
+    std::string kind;
     int iterations = 0;
     double initial_cost = 0.0;
     double final_cost = 0.0;
