@@ -268,12 +268,14 @@ SyntheticMatches MakeMatches(std::uint32_t seed, double pixel_noise_px, double g
 // The mapper's schedules of adjustment, each of which must reach the noise:
 // the default (a global adjustment every 25 % of growth, exact); with local
 // adjustments between; rare global ones with intermediate ones solved
-// iteratively (the large-block path, here from 8 images).
+// iteratively (the large-block path, here from 8 images); Huber in every
+// global solve instead of screening, then least squares.
 struct AdjustmentSchedule {
   const char* name;
   int local_adjust_images;
   double global_adjust_growth;
   int iterative_above_images;
+  bool global_adjust_screening = true;
 };
 
 class MapperSchedules : public ::testing::TestWithParam<AdjustmentSchedule> {};
@@ -281,7 +283,8 @@ class MapperSchedules : public ::testing::TestWithParam<AdjustmentSchedule> {};
 INSTANTIATE_TEST_SUITE_P(IncrementalMapper, MapperSchedules,
                          ::testing::Values(AdjustmentSchedule{"default", 0, 0.25, 0},
                                            AdjustmentSchedule{"local", 6, 0.25, 0},
-                                           AdjustmentSchedule{"local_iterative", 6, 1.0, 8}),
+                                           AdjustmentSchedule{"local_iterative", 6, 1.0, 8},
+                                           AdjustmentSchedule{"huber", 0, 0.25, 0, false}),
                          [](const auto& info) { return std::string(info.param.name); });
 
 TEST_P(MapperSchedules, RegistersEveryImageOfASyntheticBlockToTheNoiseLevel) {
@@ -296,6 +299,7 @@ TEST_P(MapperSchedules, RegistersEveryImageOfASyntheticBlockToTheNoiseLevel) {
   options.local_adjust_images = GetParam().local_adjust_images;
   options.global_adjust_growth = GetParam().global_adjust_growth;
   options.iterative_above_images = GetParam().iterative_above_images;
+  options.global_adjust_screening = GetParam().global_adjust_screening;
   const MapperResult result =
       ReconstructIncremental(s.names, camera_of_image, {start}, s.features, s.matches, options);
   // Local adjustments run between the global ones (from the ninth image on)

@@ -55,6 +55,8 @@ TEST(WorkspaceRecords, ReconstructionRecordRoundTripsAndReadsUnversionedFiles) {
   ReconstructionRecord r;
   r.initial_pair = "a.jpg-b.jpg";
   r.tracks = 5000;
+  r.global_adjustments = 17;
+  r.adjustment_iterations = 187;
   r.registered = 1;
   r.images = {{"a.jpg", true, ""}, {"c.jpg", false, "PnP: 3 inliers of 40, needs 15"}};
   r.options = {{"min_pnp_inliers", 15}};
@@ -63,6 +65,7 @@ TEST(WorkspaceRecords, ReconstructionRecordRoundTripsAndReadsUnversionedFiles) {
   const ReconstructionRecord back = ReconstructionRecordFromJson(doc, "reconstruction.json");
   EXPECT_EQ(back.initial_pair, r.initial_pair);
   EXPECT_EQ(back.tracks, 5000);
+  EXPECT_EQ(back.adjustment_iterations, 187);
   ASSERT_EQ(back.images.size(), 2u);
   EXPECT_FALSE(back.images[1].registered);
   EXPECT_EQ(back.images[1].why_not, r.images[1].why_not);
@@ -99,6 +102,9 @@ TEST(WorkspaceRecords, FingerprintsFollowTheOptionsThatShapeEachProduct) {
   other.mapper.max_reprojection_px = 2.0;
   EXPECT_EQ(MatchFingerprint(other), match);
   EXPECT_NE(ReconstructFingerprint(other), mapper);
+  other = o;
+  other.mapper.global_adjust_screening = false;
+  EXPECT_EQ(FingerprintChanges(mapper, ReconstructFingerprint(other)), "global_adjust_screening: true -> false");
 
   // Threads and progress shape nothing.
   other = o;

@@ -165,6 +165,7 @@ struct RunArgs {
   int gps_neighbours = 12;
   int local_ba_images = MapperOptions().local_adjust_images;
   double global_ba_growth = MapperOptions().global_adjust_growth;
+  std::string global_ba_loss = MapperOptions().global_adjust_screening ? "screening" : "huber";
   int iterative_ba_above = MapperOptions().iterative_above_images;
   std::string gcp;
   std::string checkpoints;

@@ -145,6 +145,10 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
     cmd->add_option("--global-ba-growth", a->global_ba_growth,
                     "Global bundle adjustment whenever the registered images have grown by this fraction")
         ->check(CLI::Range(0.01, 10.0))->capture_default_str();
+    cmd->add_option("--global-ba-loss", a->global_ba_loss,
+                    "Global bundle adjustments: 'screening' (Huber finds the blunders, least squares "
+                    "estimates) or 'huber' (Huber in every solve)")
+        ->check(CLI::IsMember({"screening", "huber"}))->capture_default_str();
     cmd->add_option("--iterative-ba-above", a->iterative_ba_above,
                     "Intermediate global adjustments of models above this many images solve by conjugate "
                     "gradients (the final one is always exact); 0 = never")
@@ -364,6 +368,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   o.matching.gps_neighbours = a.gps_neighbours;
   o.mapper.local_adjust_images = a.local_ba_images;
   o.mapper.global_adjust_growth = a.global_ba_growth;
+  o.mapper.global_adjust_screening = a.global_ba_loss == "screening";
   o.mapper.iterative_above_images = a.iterative_ba_above;
   o.gcp = a.gcp;
   o.camera_file = a.policy.camera_file;

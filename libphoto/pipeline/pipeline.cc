@@ -224,6 +224,7 @@ bool RunReconstructStage(const PipelineOptions& o) {
   doc.dropped_inconsistent_tracks = result.dropped_inconsistent_tracks;
   doc.global_adjustments = result.global_adjustments;
   doc.adjustment_s = result.adjustment_s;
+  doc.adjustment_iterations = result.adjustment_iterations;
   doc.local_adjustments = result.local_adjustments;
   doc.local_adjustment_s = result.local_adjustment_s;
   doc.registered = static_cast<int>(registered.images.size());

@@ -217,6 +217,7 @@ nlohmann::json ReconstructFingerprint(const PipelineOptions& o) {
           {"local_adjust_images", m.local_adjust_images},
           {"local_adjust_iterations", m.local_adjust_iterations},
           {"global_adjust_growth", m.global_adjust_growth},
+          {"global_adjust_screening", m.global_adjust_screening},
           {"iterative_above_images", m.iterative_above_images}};
 }
 
@@ -288,6 +289,7 @@ nlohmann::json ToJson(const ReconstructionRecord& r) {
           {"dropped_inconsistent_tracks", r.dropped_inconsistent_tracks},
           {"global_adjustments", r.global_adjustments},
           {"adjustment_s", r.adjustment_s},
+          {"adjustment_iterations", r.adjustment_iterations},
           {"local_adjustments", r.local_adjustments},
           {"local_adjustment_s", r.local_adjustment_s},
           {"registered", r.registered},
@@ -304,6 +306,7 @@ ReconstructionRecord ReconstructionRecordFromJson(const nlohmann::json& doc, con
   r.dropped_inconsistent_tracks = doc.value("dropped_inconsistent_tracks", 0);
   r.global_adjustments = doc.value("global_adjustments", 0);
   r.adjustment_s = doc.value("adjustment_s", 0.0);
+  r.adjustment_iterations = doc.value("adjustment_iterations", 0);
   r.local_adjustments = doc.value("local_adjustments", 0);
   r.local_adjustment_s = doc.value("local_adjustment_s", 0.0);
   r.registered = Field<int>(doc, "registered", path);

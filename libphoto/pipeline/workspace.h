@@ -95,6 +95,7 @@ struct ReconstructionRecord {
   int dropped_inconsistent_tracks = 0;
   int global_adjustments = 0;
   double adjustment_s = 0.0;  // wall time of the mapper's global adjustments
+  int adjustment_iterations = 0;  // their solver iterations
   int local_adjustments = 0;
   double local_adjustment_s = 0.0;
   int registered = 0;

@@ -144,6 +144,7 @@ class Mapper {
     result.images = status_;
     result.global_adjustments = adjustments_;
     result.adjustment_s = adjustment_s_;
+    result.adjustment_iterations = adjustment_iterations_;
     result.local_adjustments = local_adjustments_;
     result.local_adjustment_s = local_adjustment_s_;
     for (size_t i = 0; i < gps_strikes_.size(); ++i) {
@@ -624,6 +625,7 @@ class Mapper {
     o.max_outlier_rounds = 2;
     o.num_threads = options_.num_threads;
     o.max_iterations = final_round ? 100 : 40;
+    o.least_squares_after_screening = options_.global_adjust_screening;
     const int n = NumRegistered();
     if (final_round) {
       o.refine_intrinsics = IntrinsicsRefinement::kAll;
@@ -639,8 +641,9 @@ class Mapper {
       o.linear_solver = LinearSolverChoice::kIterativeSchur;
     }
     const auto start = std::chrono::steady_clock::now();
-    AdjustBundle(&model_, o);
+    const BundleSummary summary = AdjustBundle(&model_, o);
     adjustment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    adjustment_iterations_ += summary.iterations;
     ++adjustments_;
     DeregisterAgainstGps();
     // Points left with fewer than two observations are dropped (their tracks
@@ -767,6 +770,7 @@ class Mapper {
   std::vector<std::optional<Eigen::Vector3d>> gps_;
   std::map<std::string, GimbalAttitude> gimbal_;  // by image name
   int adjustments_ = 0;
+  int adjustment_iterations_ = 0;
   double adjustment_s_ = 0.0;
   int local_adjustments_ = 0;
   double local_adjustment_s_ = 0.0;

@@ -91,6 +91,13 @@ struct MapperOptions {
   // A global adjustment runs whenever the registered images have grown by
   // this fraction since the last one (and while the model is small).
   double global_adjust_growth = 0.25;
+  // Global adjustments screen with the Huber loss (stopped at a relative
+  // cost change of 1e-5) and, once the blunders beyond
+  // max_reprojection_px are out, estimate by least squares
+  // (BundleOptions::least_squares_after_screening): Huber's re-weighting
+  // crawls along a block's weak directions for as many iterations as it is
+  // allowed, more as the block grows. false: Huber in every solve.
+  bool global_adjust_screening = true;
 
   int num_threads = 0;
   // Focal-length priors per camera group (see BundleOptions).
@@ -116,6 +123,7 @@ struct MapperResult {
   std::string initial_pair;
   int global_adjustments = 0;
   double adjustment_s = 0.0;  // wall time spent in the global adjustments
+  int adjustment_iterations = 0;  // solver iterations of the global adjustments
   int local_adjustments = 0;
   double local_adjustment_s = 0.0;
   // Images de-registered because their pose disagreed with their GPS
