@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <set>
 
@@ -517,6 +519,50 @@ TEST(Georeferencing, WTestNamesABlunderedMark) {
   EXPECT_EQ(SurveyStatus(r.findings), "warnings");
 }
 
+
+// The w-test's critical values against the normal quantiles (Python's
+// statistics.NormalDist().inv_cdf): per test, and Sidak's for the largest of
+// n tests at a family-wise 1 %.
+TEST(Georeferencing, WTestCriticalValuesAreTheNormalQuantiles) {
+  EXPECT_NEAR(TwoSidedNormalCriticalValue(0.001), 3.2905267, 1e-6);
+  EXPECT_NEAR(TwoSidedNormalCriticalValue(0.05), 1.9599640, 1e-6);
+  EXPECT_NEAR(FamilyWiseCriticalValue(1, 0.01), 2.5758293, 1e-6);
+  EXPECT_NEAR(FamilyWiseCriticalValue(200, 0.01), 4.0544592, 1e-6);
+  EXPECT_NEAR(FamilyWiseCriticalValue(1600, 0.01), 4.5166878, 1e-6);
+}
+
+// A large clean survey expects a mark or two beyond the per-test 3.29: they
+// are listed as suspect without a MARK_BLUNDER; a blunder beyond the
+// family-wise value is named, and only it is rejected.
+TEST(Georeferencing, DataSnoopingHoldsItsLevelAcrossTheSurvey) {
+  std::vector<MarkResult> marks(800);
+  for (size_t i = 0; i < marks.size(); ++i) {
+    marks[i].point = "GCP" + std::to_string(i / 20);
+    marks[i].image = "IMG_" + std::to_string(i);
+    marks[i].redundancy = Eigen::Vector2d(0.8, 0.7);
+    marks[i].w = Eigen::Vector2d(std::sin(i) * 2.0, std::cos(i) * 2.0);
+  }
+  ASSERT_EQ(CountMarkTests(marks), 1600);
+  const double family = FamilyWiseCriticalValue(CountMarkTests(marks), 0.01);
+  marks[417].w.y() = -3.4;  // as the 999-photo survey's largest
+  EXPECT_TRUE(SnoopMarks(&marks, 3.29, family).empty());
+  EXPECT_TRUE(marks[417].suspect);
+  EXPECT_FALSE(marks[417].rejected);
+  EXPECT_EQ(std::count_if(marks.begin(), marks.end(), [](const MarkResult& m) { return m.suspect; }), 1);
+
+  marks[90].w.x() = 6.0;  // a blunder
+  const std::vector<Finding> found = SnoopMarks(&marks, 3.29, family);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].code, "MARK_BLUNDER");
+  EXPECT_EQ(found[0].items, (std::vector<std::string>{"GCP4", "IMG_90"}));
+  EXPECT_NE(found[0].message.find("1 more mark above 3.29"), std::string::npos) << found[0].message;
+  for (size_t i = 0; i < marks.size(); ++i) EXPECT_EQ(marks[i].rejected, i == 90) << i;
+  EXPECT_EQ(SurveyStatus(found), "warnings");
+
+  // A mark seen by too few images to be tested does not count.
+  marks[0].redundancy = Eigen::Vector2d(0.0, 0.0);
+  EXPECT_EQ(CountMarkTests(marks), 1598);
+}
 
 // Solved to the optimum: two starts (other frames, scales and perturbations
 // of the same block) end at the same check points within 0.1 mm.

@@ -254,6 +254,35 @@ TEST(HtmlReport, VarianceComponentsPerGroup) {
             std::string::npos);
 }
 
+// Data snooping states both levels: marks beyond the per-test value against
+// how many a clean survey expects, and the largest against the family-wise
+// value that decides MARK_BLUNDER.
+TEST(HtmlReport, DataSnoopingStatesBothLevels) {
+  json r = Images(5, true);
+  r["adjustment"]["precision"] = {{"computed", true}};
+  json marks = json::array();
+  for (int i = 0; i < 800; ++i) {
+    marks.push_back({{"point", "GCP" + std::to_string(i / 20)}, {"image", "IMG_" + std::to_string(i)},
+                     {"w", {i == 417 ? -3.4 : 1.0, 0.5}}, {"suspect", i == 417}, {"rejected", false}});
+  }
+  r["adjustment"]["data_snooping"] = {{"critical_value", 3.29},        {"tests", 1600},
+                                      {"family_alpha", 0.01},          {"critical_value_family", 4.5167},
+                                      {"suspects", 1},                 {"expected_suspects_without_blunders", 1.6},
+                                      {"marks", marks}};
+  std::string html = RenderHtmlReport(r, "");
+  const std::string clean =
+      "Baarda's w-test on 800 marks (1600 tests): 1 above 3.29 (&alpha;<sub>0</sub> 0.1 % per test; 1.6 expected "
+      "without blunders); largest |w| 3.40 (GCP20 on IMG_417) against 4.52 for the largest of all tests "
+      "(&alpha; 1.0 %) &mdash; none rejected.";
+  EXPECT_NE(html.find(clean), std::string::npos) << html.substr(html.find("Data snooping"), 600);
+  r["adjustment"]["data_snooping"]["marks"][90]["w"][0] = 6.0;
+  html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("largest |w| 6.00 (GCP4 on IMG_90) against 4.52 for the largest of all tests (&alpha; 1.0 %) "
+                      "&mdash; <b>rejected: measure this mark again</b>."),
+            std::string::npos)
+      << html.substr(html.find("Data snooping"), 600);
+}
+
 TEST(HtmlReport, DsmPreviewHasALegendAndAScaleBar) {
   json r = Images(5, true);
   r["dsm"] = {{"file", "dsm.tif"}, {"width", 900}, {"height", 600}, {"resolution_m", 0.16},

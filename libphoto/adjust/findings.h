@@ -25,7 +25,8 @@
 //                              error    when more than half of them are
 //   PRIORS_INCONSISTENT        warning  priors left out of the initial fit
 //   DOME                       warning  vertical residuals domed across the block
-//   MARK_BLUNDER               warning  Baarda's w-test rejects a target mark (point, image)
+//   MARK_BLUNDER               warning  Baarda's w-test rejects a target mark at the family-wise
+//                                       level (QualityGates::mark_family_alpha) (point, image)
 //   MARK_DUPLICATED            warning  one target labelled as two points in one photo
 //   GPS_DRIFT                  warning  GPS positions trend in time: a drift per flight estimated
 //   GPS_TILT_REJECTED          warning  GPS heights would tilt a nadir block; levelled by its attitude
@@ -72,6 +73,12 @@ struct QualityGates {
   double min_check_threshold_m = 0.1;
   // A significant dome (|t| >= 3) larger than this many GSD is a warning.
   double max_dome_gsd = 2.0;
+  // Data snooping: MARK_BLUNDER when the largest |w| of the marks is
+  // significant at this family-wise level over all their tests (Sidak), so
+  // that a clean survey is flagged in at most this share of cases at any
+  // size; marks beyond the per-test 3.29 (alpha0 0.1 %) are listed as
+  // suspect without raising the status.
+  double mark_family_alpha = 0.01;
 };
 
 // "ok" (no findings), "warnings", or "failed" (any error).

@@ -26,6 +26,8 @@ void GeoreferenceOptions::Check() const {
   CheckOption(weak_focal_rel > 0.0 && weak_focal_rel < 1.0, "georeference weak_focal_rel", weak_focal_rel,
               "a fraction in (0, 1)");
   CheckOption(gates.max_rms_px > 0.0, "gates max_rms_px", gates.max_rms_px, "a positive number of pixels");
+  CheckOption(gates.mark_family_alpha > 0.0 && gates.mark_family_alpha < 0.5, "gates mark_family_alpha",
+              gates.mark_family_alpha, "a probability in (0, 0.5)");
   CheckOption(gates.max_gps_inconsistent_fraction > 0.0 && gates.max_gps_inconsistent_fraction <= 1.0,
               "gates max_gps_inconsistent_fraction", gates.max_gps_inconsistent_fraction, "a fraction in (0, 1]");
   std::string error;
@@ -337,6 +339,56 @@ std::vector<Finding> IntrinsicsCorrelationFindings(const std::vector<IntrinsicsP
         items));
   }
   return out;
+}
+
+double TwoSidedNormalCriticalValue(double alpha) {
+  // P(|z| > c) = erfc(c / sqrt 2), decreasing in c: bisection to 1e-12.
+  double lo = 0.0, hi = 40.0;
+  for (int i = 0; i < 200 && hi - lo > 1e-12; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erfc(mid / std::sqrt(2.0)) > alpha ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+double FamilyWiseCriticalValue(int tests, double family_alpha) {
+  // 1 - (1 - a)^(1/n) without cancellation for small a.
+  const double per_test = -std::expm1(std::log1p(-family_alpha) / std::max(tests, 1));
+  return TwoSidedNormalCriticalValue(per_test);
+}
+
+int CountMarkTests(const std::vector<MarkResult>& marks) {
+  int tests = 0;
+  for (const MarkResult& m : marks) tests += (m.redundancy.array() > 1e-6).count();
+  return tests;
+}
+
+std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critical, double w_critical_family) {
+  MarkResult* worst = nullptr;
+  int suspects = 0;
+  for (MarkResult& m : *marks) {
+    const double w = m.w.cwiseAbs().maxCoeff();
+    m.suspect = w > w_critical;
+    m.rejected = false;
+    suspects += m.suspect;
+    if (!worst || w > worst->w.cwiseAbs().maxCoeff()) worst = &m;
+  }
+  if (!worst || !(worst->w.cwiseAbs().maxCoeff() > w_critical_family)) return {};
+  worst->rejected = true;
+  char more[160] = "";
+  if (suspects > 1) {
+    std::snprintf(more, sizeof more, "; %d more mark%s above %.2f, likely raised by this one", suspects - 1,
+                  suspects > 2 ? "s" : "", w_critical);
+  }
+  char text[600];
+  std::snprintf(text, sizeof text,
+                "Baarda's w-test rejects the mark of '%s' on image '%s': w = %.1f (residual %.2f, %.2f px; "
+                "critical value %.2f for the largest of the survey's %d mark tests)%s: measure it again and "
+                "re-run",
+                worst->point.c_str(), worst->image.c_str(),
+                std::abs(worst->w.x()) > std::abs(worst->w.y()) ? worst->w.x() : worst->w.y(),
+                worst->residual_px.x(), worst->residual_px.y(), w_critical_family, CountMarkTests(*marks), more);
+  return {Finding::Warning("MARK_BLUNDER", text, {worst->point, worst->image})};
 }
 
 std::string ToString(GpsOffsetPolicy policy) {
@@ -1539,44 +1591,22 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
                                : "; state the estimate, or let it be used (--variance-components estimate)");
     report.findings.push_back(Finding::Warning("SIGMAS_OPTIMISTIC", text, {ToString(vc.group)}));
   }
-  // Data snooping on the marks: the largest |w| beyond the critical value is
-  // the likeliest blunder (one at a time: a blunder raises its neighbours'
-  // w too, less).
-  {
-    MarkResult* worst = nullptr;
-    int above = 0;
-    for (const MarkTest& t : precision.marks) {
-      MarkResult m;
-      m.point = model->points[t.point].name;
-      m.image = model->images[t.image].name;
-      m.role = model->points[t.point].role;
-      m.residual_px = t.residual_px;
-      m.redundancy = t.redundancy;
-      m.w = t.w;
-      report.marks.push_back(m);
-      above += t.MaxAbsW() > report.w_critical;
-    }
-    for (MarkResult& m : report.marks) {
-      if (m.w.cwiseAbs().maxCoeff() > report.w_critical &&
-          (!worst || m.w.cwiseAbs().maxCoeff() > worst->w.cwiseAbs().maxCoeff())) {
-        worst = &m;
-      }
-    }
-    if (worst) {
-      worst->rejected = true;
-      char text[400];
-      std::snprintf(text, sizeof text,
-                    "Baarda's w-test rejects the mark of '%s' on image '%s': w = %.1f (residual %.2f, %.2f px; "
-                    "critical value %.2f at alpha 0.1 %%)%s",
-                    worst->point.c_str(), worst->image.c_str(),
-                    std::abs(worst->w.x()) > std::abs(worst->w.y()) ? worst->w.x() : worst->w.y(),
-                    worst->residual_px.x(), worst->residual_px.y(), report.w_critical,
-                    above > 1 ? ("; " + std::to_string(above - 1) +
-                                 " more marks above it, likely raised by this one: measure it again and re-run")
-                                    .c_str()
-                              : "; measure it again and re-run");
-      report.findings.push_back(Finding::Warning("MARK_BLUNDER", text, {worst->point, worst->image}));
-    }
+  // Data snooping on the marks (SnoopMarks).
+  for (const MarkTest& t : precision.marks) {
+    MarkResult m;
+    m.point = model->points[t.point].name;
+    m.image = model->images[t.image].name;
+    m.role = model->points[t.point].role;
+    m.residual_px = t.residual_px;
+    m.redundancy = t.redundancy;
+    m.w = t.w;
+    report.marks.push_back(m);
+  }
+  report.mark_tests = CountMarkTests(report.marks);
+  report.mark_family_alpha = options.gates.mark_family_alpha;
+  report.w_critical_family = FamilyWiseCriticalValue(std::max(report.mark_tests, 1), report.mark_family_alpha);
+  for (Finding& f : SnoopMarks(&report.marks, report.w_critical, report.w_critical_family)) {
+    report.findings.push_back(std::move(f));
   }
   ApplyQualityGates(*model, options.gates, &report);
   if (options.leave_one_out) {

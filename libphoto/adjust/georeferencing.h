@@ -138,8 +138,27 @@ struct MarkResult {
   Eigen::Vector2d residual_px = Eigen::Vector2d::Zero();  // adjusted − observed
   Eigen::Vector2d redundancy = Eigen::Vector2d::Zero();
   Eigen::Vector2d w = Eigen::Vector2d::Zero();
-  bool rejected = false;  // |w| above the critical value
+  bool suspect = false;   // |w| above the per-test critical value (alpha0 0.1 %)
+  bool rejected = false;  // the largest |w|, above the family-wise critical value: MARK_BLUNDER
 };
+
+// The two-sided standard-normal critical value at level alpha in (0, 1):
+// P(|z| > c) = alpha (3.29 at 0.1 %).
+double TwoSidedNormalCriticalValue(double alpha);
+
+// The critical value for the largest |w| of `tests` independent tests at the
+// family-wise level family_alpha (Sidak: each at 1 - (1 - family_alpha)^(1/
+// tests)). One test: TwoSidedNormalCriticalValue(family_alpha).
+double FamilyWiseCriticalValue(int tests, double family_alpha);
+
+// Data snooping's decision over the marks (one test per image axis with a
+// redundancy above 1e-6). Marks with |w| > w_critical are marked suspect;
+// the one with the largest |w|, when it exceeds w_critical_family, is
+// marked rejected and named by the returned MARK_BLUNDER warning (one at a
+// time: a blunder raises its neighbours' w too, less). No finding when
+// nothing exceeds w_critical_family.
+std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critical, double w_critical_family);
+int CountMarkTests(const std::vector<MarkResult>& marks);
 
 struct CameraResult {
   std::string name;
@@ -279,8 +298,14 @@ struct GeoreferenceReport {
   // Data snooping on the target marks (control, and check points inside the
   // bundle): Baarda's w-test at the critical value below (α0 = 0.1 %,
   // two-sided normal); precision_note says why the statistics are missing.
+  // The survey's status is raised only beyond w_critical_family: the level
+  // gates.mark_family_alpha over all mark_tests (at 0.1 % per test, a clean
+  // survey of 800 marks, 1,600 tests, expects 1.6 of them beyond 3.29).
   std::vector<MarkResult> marks;
   double w_critical = 3.29;
+  int mark_tests = 0;
+  double mark_family_alpha = 0.01;
+  double w_critical_family = 3.29;
   LeaveOneOut leave_one_out;  // when GeoreferenceOptions::leave_one_out
   std::string precision_note;
   // Warnings and errors with stable codes (findings.h); SurveyStatus() of

@@ -342,10 +342,16 @@ std::string AdjustmentStatistics(const json& r) {
       }
     }
   }
-  h << "<h3>Data snooping of the target marks</h3><p>Baarda's w-test on " << marks.size()
-    << " marks, critical value " << Num(Get(ds, "critical_value", 3.29), 2) << " (&alpha; 0.1 %): largest |w| "
-    << Num(max_w, 2) << (worst.empty() ? std::string() : " (" + Escape(worst) + ")")
-    << (max_w > Get(ds, "critical_value", 3.29) ? " &mdash; <b>rejected: measure this mark again</b>" : " &mdash; none rejected")
+  const double critical = Get(ds, "critical_value", 3.29);
+  const double family = Get(ds, "critical_value_family", critical);
+  h << "<h3>Data snooping of the target marks</h3><p>Baarda's w-test on " << marks.size() << " marks ("
+    << static_cast<int>(Get(ds, "tests", 0)) << " tests): " << static_cast<int>(Get(ds, "suspects", 0))
+    << " above " << Num(critical, 2) << " (&alpha;<sub>0</sub> 0.1 % per test; "
+    << Num(Get(ds, "expected_suspects_without_blunders", 0), 1) << " expected without blunders); largest |w| "
+    << Num(max_w, 2) << (worst.empty() ? std::string() : " (" + Escape(worst) + ")") << " against "
+    << Num(family, 2) << " for the largest of all tests (&alpha; " << Num(100 * Get(ds, "family_alpha", 0.01), 1)
+    << " %)"
+    << (max_w > family ? " &mdash; <b>rejected: measure this mark again</b>" : " &mdash; none rejected")
     << ".</p>";
   return h.str();
 }

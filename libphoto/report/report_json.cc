@@ -378,13 +378,22 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                        {"residual_px", {m.residual_px.x(), m.residual_px.y()}},
                        {"redundancy", {m.redundancy.x(), m.redundancy.y()}},
                        {"w", {m.w.x(), m.w.y()}},
+                       {"suspect", m.suspect},
                        {"rejected", m.rejected}});
     }
+    int suspects = 0;
+    for (const MarkResult& m : r.marks) suspects += m.suspect;
     j["adjustment"]["data_snooping"] = {
         {"test", "Baarda's w-test on each mark's image residual (adjusted - observed), per axis: "
-                 "w = v / (sigma sqrt(r)), r the redundancy number"},
+                 "w = v / (sigma sqrt(r)), r the redundancy number; marks beyond critical_value are suspect, "
+                 "the largest |w| beyond critical_value_family is rejected (MARK_BLUNDER)"},
         {"critical_value", r.w_critical},
         {"alpha", 0.001},
+        {"tests", r.mark_tests},
+        {"family_alpha", r.mark_family_alpha},
+        {"critical_value_family", r.w_critical_family},
+        {"suspects", suspects},
+        {"expected_suspects_without_blunders", 0.001 * r.mark_tests},
         {"marks", marks}};
   }
   j["adjustment"]["helmert"] = {{"correspondences", r.helmert_correspondences},

@@ -21,8 +21,10 @@
 //     gps_offset {estimated, offset {e_m, n_m, u_m}}, helmert {datum_source, ...},
 //     intrinsics [{camera, model, params{name: value}}], sigma0, redundancy,
 //     chi2_test, precision {computed, note, variance_factor, check_points,
-//     gps_offset_sigma}, data_snooping {critical_value, alpha, marks[{point,
-//     image, role, residual_px, redundancy, w, rejected}]}, ...},
+//     gps_offset_sigma}, data_snooping {critical_value, alpha, tests,
+//     family_alpha, critical_value_family, suspects,
+//     expected_suspects_without_blunders, marks[{point, image, role,
+//     residual_px, redundancy, w, suspect, rejected}]}, ...},
 //   status "ok" | "warnings" | "failed",
 //   warnings [{code, message, items[]}], errors [{code, message, items[]}]
 //     (codes: libphoto/adjust/findings.h).
