@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "libphoto/adjust/georeferencing.h"
@@ -207,6 +208,30 @@ TEST(DomeTest, RecoversAnInjectedDomeAndFindsNoneWhereThereIsNone) {
   // Too few points: no test.
   const DomeTest few = FitDome({xy.begin(), xy.begin() + 3}, {0, 0, 0}, Eigen::Vector2d::Zero(), radius, "GPS");
   EXPECT_TRUE(few.source.empty());
+}
+
+// Student's t against its closed forms (1 degree of freedom: Cauchy,
+// P = 1 - 2 atan(t) / pi; 2: P = 1 - t / sqrt(2 + t^2)) and the normal limit.
+TEST(DomeTest, CriticalValuesAreStudentsT) {
+  EXPECT_NEAR(StudentTCriticalValue(1, kDomeAlpha), std::tan(M_PI / 2 * (1 - kDomeAlpha)), 1e-3);
+  const double p = 1 - kDomeAlpha;
+  EXPECT_NEAR(StudentTCriticalValue(2, kDomeAlpha), std::sqrt(2 * p * p / (1 - p * p)), 1e-5);
+  EXPECT_NEAR(StudentTCriticalValue(2, 0.05), 4.302653, 1e-5);  // the tables' t(0.975, 2)
+  EXPECT_NEAR(StudentTCriticalValue(10000, kDomeAlpha), 3.0, 2e-3);
+}
+
+// Six check points in a ring near the centre of a wide block (the rendered
+// 12 MP survey's): two degrees of freedom left, their scatter of a
+// centimetre turns into a 0.4 m "dome" at |t| 4.4, which is no evidence.
+TEST(DomeTest, SixPointsAreNotADomeAtTwoDegreesOfFreedom) {
+  const std::vector<Eigen::Vector2d> xy = {{47.6, 20.1}, {0.6, 41.5}, {-47.2, 21.9},
+                                           {-47.9, -19.1}, {-0.9, -40.5}, {46.8, -20.9}};
+  const std::vector<double> dz = {0.0017, 0.0107, -0.0120, -0.0129, 0.0186, -0.0072};
+  const DomeTest d = FitDome(xy, dz, Eigen::Vector2d::Zero(), 137.5, "check points");
+  EXPECT_EQ(d.points, 6);
+  EXPECT_GT(std::abs(d.t), 3.0);  // the old rule's false alarm
+  EXPECT_NEAR(d.t_critical, 19.21, 0.01);
+  EXPECT_FALSE(d.significant);
 }
 
 // A flat nadir block at one altitude with GPS alone does not determine the

@@ -71,6 +71,31 @@ BlockGeometry MeasureBlockGeometry(const SparseModel& model) {
   return g;
 }
 
+double StudentTCriticalValue(int dof, double alpha) {
+  // P(|T| > t) = 1 - 2 * integral of the density over [0, t] (Simpson), and
+  // bisection on t; the density is smooth, so 4000 panels reach 1e-9.
+  const double v = std::max(dof, 1);
+  const double c = std::exp(std::lgamma(0.5 * (v + 1.0)) - std::lgamma(0.5 * v)) / std::sqrt(v * M_PI);
+  auto tail = [&](double t) {
+    const int m = 4000;
+    const double h = t / m;
+    double sum = 0.0;
+    for (int i = 0; i <= m; ++i) {
+      const double x = i * h;
+      const double f = c * std::pow(1.0 + x * x / v, -0.5 * (v + 1.0));
+      sum += f * (i == 0 || i == m ? 1.0 : (i % 2 ? 4.0 : 2.0));
+    }
+    return 1.0 - 2.0 * sum * h / 3.0;
+  };
+  double lo = 0.0, hi = 1.0;
+  while (tail(hi) > alpha && hi < 1e6) hi *= 2.0;
+  for (int i = 0; i < 100 && hi - lo > 1e-9 * hi; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (tail(mid) > alpha ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
 DomeTest FitDome(const std::vector<Eigen::Vector2d>& xy, const std::vector<double>& dz,
                  const Eigen::Vector2d& centre, double radius_m, const std::string& source) {
   DomeTest d;
@@ -97,7 +122,8 @@ DomeTest FitDome(const std::vector<Eigen::Vector2d>& xy, const std::vector<doubl
   d.amplitude_m = x[3];
   d.amplitude_sigma_m = std::sqrt(rss / (n - 4) * lu.inverse()(3, 3));
   d.t = d.amplitude_sigma_m > 0.0 ? d.amplitude_m / d.amplitude_sigma_m : 0.0;
-  d.significant = std::abs(d.t) >= 3.0;
+  d.t_critical = StudentTCriticalValue(static_cast<int>(n) - 4, kDomeAlpha);
+  d.significant = std::abs(d.t) >= d.t_critical;
   return d;
 }
 

@@ -53,8 +53,19 @@ struct DomeTest {
   double amplitude_m = 0.0;
   double amplitude_sigma_m = 0.0;
   double t = 0.0;           // amplitude / its sigma
-  bool significant = false;  // |t| >= 3
+  // |t| beyond Student's t with points - 4 degrees of freedom at kDomeAlpha
+  // (3.0 for many points; 19.2 for 6, where the residuals' scatter rests on
+  // two degrees of freedom and |t| >= 3 would be a 10 % false alarm).
+  double t_critical = 0.0;
+  bool significant = false;
 };
+
+// The dome test's two-sided level: that of |z| >= 3 for a normal variate.
+inline constexpr double kDomeAlpha = 0.0026997960632601866;
+
+// The two-sided Student-t critical value: P(|T| > t) = alpha with dof
+// degrees of freedom (at least 1).
+double StudentTCriticalValue(int dof, double alpha);
 
 // xy: horizontal positions (E, N) of the points, dz their vertical residuals;
 // centre and radius_m: the block's. Needs 6 points or more.

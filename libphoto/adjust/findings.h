@@ -71,7 +71,7 @@ struct QualityGates {
   // GSD that no sigma here states).
   double check_sigma_multiple = 5.0;
   double min_check_threshold_m = 0.1;
-  // A significant dome (|t| >= 3) larger than this many GSD is a warning.
+  // A significant dome (DomeTest::significant) larger than this many GSD is a warning.
   double max_dome_gsd = 2.0;
   // Data snooping: MARK_BLUNDER when the largest |w| of the marks is
   // significant at this family-wise level over all their tests (Sidak), so

@@ -511,8 +511,10 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                              {"amplitude_m", r.dome.amplitude_m},
                              {"amplitude_sigma_m", r.dome.amplitude_sigma_m},
                              {"t", r.dome.t},
+                             {"t_critical", r.dome.t_critical},
                              {"significant", r.dome.significant},
-                             {"note", "vertical residual at the block's edge minus at its centre (dz = a + b x + c y + amplitude r^2 / R^2)"}};
+                             {"note", "vertical residual at the block's edge minus at its centre (dz = a + b x + c y + amplitude r^2 / R^2); significant: |t| beyond Student's t at points - 4 degrees of freedom, "
+                                      "two-sided 0.27 % (3.0 for many points)"}};
   j["adjustment"]["gps_offset"] = {{"estimated", r.bundle.gps_offset_estimated},
                                    {"note", "GPS minus camera centre, ENU metres"},
                                    {"offset", enu(r.bundle.gps_offset_m)}};
