@@ -30,6 +30,11 @@ void RegisterSimulateCommand(CLI::App& app, CommandAction* run) {
   cmd->add_option("--buildings", a->buildings,
                   "Flat-roofed box buildings 6-14 m wide and 4-8 m high, clear of the targets (truth/dsm.tif has them)")
       ->check(CLI::Range(0, 200))->capture_default_str();
+  cmd->add_option("--ground", a->ground,
+                  "Ground cover: 'mixed' (grass, soil and stones: texture at every scale) or 'crop-rows' "
+                  "(farmland of crop rows and tilled fields: texture that repeats, the hard case of matching)")
+      ->check(CLI::IsMember({"mixed", "crop-rows"}))
+      ->capture_default_str();
   cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--gps-drift-v", a->gps_drift_v_m,
@@ -74,6 +79,7 @@ int RunSimulate(const SimulateArgs& a, ToolContext& ctx) {
   o.survey.gimbal_pitch_deg = a.gimbal_pitch_deg;
   o.write_gimbal_xmp = a.gimbal_xmp;
   o.num_buildings = a.buildings;
+  o.ground_cover = a.ground == "crop-rows" ? GroundCover::kCropRows : GroundCover::kMixed;
   o.survey.num_control_points = a.control;
   o.survey.num_check_points = a.checks;
   o.survey.num_tie_points = a.tie_points;

@@ -17,6 +17,14 @@
 
 namespace aerotri {
 
+// What covers the ground between the targets.
+enum class GroundCover {
+  kMixed,     // grass and soil with stones: texture at every scale, unique
+  kCropRows,  // farmland: fields of crop rows 0.6-0.9 m apart, bare tilled
+              // fields, tramlines; texture that repeats along and across
+              // the rows (the hard case of matching)
+};
+
 struct GroundTarget {
   Eigen::Vector2d east_north;  // centre (ENU metres)
   double size_m = 1.0;         // side of the square (2x2 checker)
@@ -38,6 +46,7 @@ struct RenderOptions {
   double relief_m = 12.0;
   std::vector<GroundTarget> targets;
   std::vector<BoxBuilding> buildings;
+  GroundCover cover = GroundCover::kMixed;
   int supersample = 2;       // per axis
   double noise_dn = 1.5;     // sensor noise (digital numbers)
   std::uint32_t seed = 1;
@@ -49,13 +58,15 @@ cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions&
 
 // The ground's albedo at (east, north), RGB in [0, 1].
 Eigen::Vector3d GroundAlbedo(double east_m, double north_m,
-                             const std::vector<GroundTarget>& targets);
+                             const std::vector<GroundTarget>& targets,
+                             GroundCover cover = GroundCover::kMixed);
 
 // The scene's top surface (roofs where there are buildings) and its colour
 // seen from above: what a true orthoimage shows.
 double SceneHeight(double east_m, double north_m, double relief_m, const std::vector<BoxBuilding>& buildings);
 Eigen::Vector3d SceneAlbedoFromAbove(double east_m, double north_m, const std::vector<GroundTarget>& targets,
-                                     const std::vector<BoxBuilding>& buildings);
+                                     const std::vector<BoxBuilding>& buildings,
+                                     GroundCover cover = GroundCover::kMixed);
 
 // Intersection of a ray (centre + t * direction, t > 0) with the terrain;
 // std::nullopt when it misses (looking up, or no convergence).

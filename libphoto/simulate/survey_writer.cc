@@ -230,7 +230,8 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
           Eigen::Vector3d sum = Eigen::Vector3d::Zero();
           for (int sy = -1; sy <= 1; ++sy) {
             for (int sx = -1; sx <= 1; ++sx) {
-              sum += SceneAlbedoFromAbove(enu.x() + sx * res / 3.0, enu.y() + sy * res / 3.0, targets, buildings);
+              sum += SceneAlbedoFromAbove(enu.x() + sx * res / 3.0, enu.y() + sy * res / 3.0, targets, buildings,
+                                          options.ground_cover);
             }
           }
           for (int k = 0; k < 3; ++k) rgb.at<cv::Vec3b>(y, x)[k] = cv::saturate_cast<std::uint8_t>(255.0 * sum[k] / 9.0);
@@ -282,6 +283,7 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
   info["tie_point_noise_px"] = options.survey.pixel_noise_px;
   info["relief_m"] = options.survey.relief_m;
   info["seed"] = options.survey.seed;
+  info["ground"] = options.ground_cover == GroundCover::kCropRows ? "crop-rows" : "mixed";
   info["buildings"] = nlohmann::json::array();
   for (const BoxBuilding& b : buildings) {
     info["buildings"].push_back({{"centre_enu_m", {b.centre.x(), b.centre.y()}},
@@ -297,6 +299,7 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
   render.relief_m = options.survey.relief_m;
   render.seed = options.survey.seed;
   render.buildings = buildings;
+  render.cover = options.ground_cover;
   for (const Point& p : truth.points) {
     if (p.role != PointRole::kTie) render.targets.push_back({p.position.head<2>(), 1.0});
   }

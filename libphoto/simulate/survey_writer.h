@@ -28,6 +28,7 @@
 #include <string>
 
 #include "libphoto/base/progress.h"
+#include "libphoto/simulate/render.h"
 #include "libphoto/simulate/synthetic_georef.h"
 
 namespace aerotri {
@@ -44,6 +45,7 @@ struct SimulationOptions {
   // away from the control and check targets; truth/dem.tif stays the bare
   // terrain, truth/dsm.tif adds the roofs, truth.json lists them.
   int num_buildings = 0;
+  GroundCover ground_cover = GroundCover::kMixed;
   double sensor_width_mm = 6.4;  // for EXIF focal length in mm
   // DJI XMP gimbal angles in each JPEG (drone-dji:GimbalPitchDegree,
   // GimbalYawDegree, GimbalRollDegree): the true attitude with Gaussian
