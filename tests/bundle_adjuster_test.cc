@@ -364,6 +364,60 @@ TEST(BundleAdjuster, FocalPriorHoldsFocalLengthOverFlatGround) {
   EXPECT_LT(std::abs(run(true)), 0.01);
 }
 
+// A point seen along one ray only (twice from the same photo: its depth is
+// anything) tells the cameras nothing. The posterior precision is still
+// computed, the cameras' covariance is the same as without the point, and
+// the point is counted as undetermined, not given a covariance. (On a real
+// block one such point used to void the precision of the whole survey and,
+// with it, the check that the block determines its focal length.)
+TEST(BundleAdjuster, APointAlongOneRayLeavesTheCamerasPrecisionAsItWas) {
+  const SyntheticSurveyOptions o = SmallSurvey(21);
+  const SyntheticSurvey survey = MakeSyntheticSurvey(o);
+  SparseModel model = survey.observed;
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    model.images[i].gps_prior = PositionPrior{survey.truth.images[i].pose.centre_in_world, 0.05, 0.1};
+  }
+  BundleOptions options;
+  options.refine_intrinsics = IntrinsicsRefinement::kNone;
+  AdjustBundle(&model, options);  // to the optimum, then the precision there
+  options.compute_precision = true;
+  SparseModel plain = model;
+  const BundleSummary without = AdjustBundle(&plain, options);
+  ASSERT_TRUE(without.precision.computed) << without.precision.note;
+  EXPECT_EQ(without.precision.undetermined_points, 0);
+
+  SparseModel with = model;
+  const Image& image = with.images[0];
+  const Eigen::Vector3d ray = image.pose.cam_from_world.conjugate() * Eigen::Vector3d(0.05, -0.02, 1.0);
+  Point lone;
+  lone.id = 999999;
+  lone.position = image.pose.centre_in_world + 60.0 * ray;
+  with.points.push_back(lone);
+  const int p = static_cast<int>(with.points.size()) - 1;
+  const Eigen::Vector2d xy = with.cameras[image.camera].ImageFromCamera(image.pose.CamFromWorld(lone.position));
+  with.observations.push_back({0, p, xy});
+  with.observations.push_back({0, p, xy});
+  const BundleSummary summary = AdjustBundle(&with, options);
+  ASSERT_TRUE(summary.precision.computed) << summary.precision.note;
+  EXPECT_EQ(summary.precision.undetermined_points, 1);
+  EXPECT_EQ(summary.precision.points.size(), without.precision.points.size());
+  EXPECT_EQ(summary.precision.ForPoint(p), nullptr);
+  ASSERT_EQ(summary.precision.images.size(), without.precision.images.size());
+  double worst = 0.0;
+  for (size_t k = 0; k < summary.precision.images.size(); ++k) {
+    const ImagePrecision& a = summary.precision.images[k];
+    const ImagePrecision& b = *without.precision.ForImage(a.image);
+    worst = std::max(worst, (a.centre_cov - b.centre_cov).norm() / b.centre_cov.norm());
+    worst = std::max(worst, (a.rotation_cov - b.rotation_cov).norm() / b.rotation_cov.norm());
+  }
+  // Both are scaled by their sigma0²: the two zero residuals the point adds
+  // beyond its two determined coordinates change the redundancy by 1 in
+  // thousands; nothing else may differ.
+  const double redundancy_share = 2.0 / (2.0 * static_cast<double>(with.observations.size()));
+  EXPECT_LT(worst, 2.0 * redundancy_share) << worst;
+  EXPECT_GT(without.precision.images[0].centre_cov(0, 0), 0.0);
+}
+
 TEST(BundleOptions, ValidateNamesTheOption) {
   BundleOptions options;
   std::string error;

@@ -398,9 +398,12 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     out.images.push_back(ip);
   }
   for (size_t p = 0; p < model->points.size(); ++p) {
-    if (point_slot[p] >= 0) out.points.push_back({static_cast<int>(p), solution.point_cov[point_slot[p]]});
+    if (point_slot[p] >= 0 && !solution.point_undetermined[point_slot[p]]) {
+      out.points.push_back({static_cast<int>(p), solution.point_cov[point_slot[p]]});
+    }
   }
   for (size_t k = 0; k < check_points.size(); ++k) out.points.push_back({check_points[k], solution.check_cov[k]});
+  out.undetermined_points = solution.undetermined_points;
   if (!offset_slot.empty() && offset_slot[0] >= 0) {
     out.has_gps_offset = true;
     out.gps_offset_cov = block(offset_slot[0]);

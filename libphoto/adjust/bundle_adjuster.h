@@ -316,6 +316,9 @@ struct BundlePrecision {
   double variance_factor = 1.0;  // σ0², applied to every covariance
   std::vector<ImagePrecision> images;  // adjusted images
   std::vector<PointPrecision> points;  // adjusted points and check points
+  // Adjusted points along whose (nearly parallel) rays nothing determines
+  // them: left out of `points`; the cameras' covariance is exact without.
+  int undetermined_points = 0;
   bool has_gps_offset = false;
   Eigen::Matrix3d gps_offset_cov = Eigen::Matrix3d::Zero();  // flight 0's when per flight
   std::vector<Eigen::Matrix3d> gps_flight_offset_cov;  // per flight (BundleOptions::gps_offset_per_flight)

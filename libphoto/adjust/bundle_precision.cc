@@ -5,6 +5,7 @@
 #include <ceres/crs_matrix.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -78,7 +79,8 @@ Eigen::MatrixXd Gather(const Eigen::MatrixXd& m, const std::vector<int>& rows, c
 struct PointCoupling {
   std::vector<int> cols;  // reduced columns
   Eigen::MatrixXd t;      // 3 x cols: V_p⁻¹ W_p
-  Eigen::Matrix3d v_inv = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d v_inv = Eigen::Matrix3d::Zero();  // V_p⁻¹, or its pseudo-inverse
+  bool undetermined = false;                        // V_p singular (rays parallel)
 };
 
 // S⁻¹ of a symmetric positive definite S through S = L Lᵀ: L⁻¹ by column
@@ -185,10 +187,22 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
     const Eigen::Matrix3d vp = a.transpose() * a;
     Eigen::FullPivLU<Eigen::Matrix3d> lu(vp);
     if (lu.rank() < 3) {
-      out.note = "a point's position is not determined by its observations (rays parallel)";
-      return out;
+      // Rays (nearly) parallel: the point slides along them. Its
+      // undetermined direction is one the residuals do not see (to first
+      // order), so the pseudo-inverse gives the cameras' marginal exactly
+      // (W's columns lie in V's range); the point itself has no finite
+      // covariance and is left out of the points' (point_undetermined).
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(vp);
+      const Eigen::Vector3d values = eigen.eigenvalues();
+      const double floor = 1e-10 * std::max(values.maxCoeff(), 0.0);
+      Eigen::Vector3d inv = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) inv(k) = values(k) > floor ? 1.0 / values(k) : 0.0;
+      c.v_inv = eigen.eigenvectors() * inv.asDiagonal() * eigen.eigenvectors().transpose();
+      c.undetermined = true;
+      ++out.undetermined_points;
+    } else {
+      c.v_inv = lu.inverse();
     }
-    c.v_inv = lu.inverse();
     const Eigen::MatrixXd wp = a.transpose() * b;
     c.t = c.v_inv * wp;
     const Eigen::MatrixXd update = wp.transpose() * c.t;
@@ -211,6 +225,7 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   out.point_cov.resize(np);
   for (int pt = 0; pt < np; ++pt) {
     const PointCoupling& c = coupling[pt];
+    out.point_undetermined.push_back(c.undetermined ? 1 : 0);
     out.point_cov[pt] = c.v_inv;
     if (!c.cols.empty()) out.point_cov[pt] += c.t * Gather(out.reduced_cov, c.cols, c.cols) * c.t.transpose();
   }

@@ -75,6 +75,11 @@ struct PrecisionSolution {
   std::vector<int> reduced_offset;  // first column of each reduced block in reduced_cov
   Eigen::MatrixXd reduced_cov;      // Σ_U, tangent coordinates
   std::vector<Eigen::Matrix3d> point_cov;  // index-aligned with points
+  // Points whose rays are (nearly) parallel: not determined along them, so
+  // without a finite covariance (point_cov is then meaningless); the
+  // cameras' covariance is exact all the same.
+  std::vector<char> point_undetermined;  // index-aligned with points
+  int undetermined_points = 0;
   std::vector<Eigen::Matrix3d> check_cov;  // with checks
   std::vector<MarkCofactor> marks;
   std::vector<GroupRedundancy> groups;  // with PrecisionProblem::groups

@@ -1327,6 +1327,27 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
                              bundle.focal_prior_px[p.camera] > 0.0;
       all_have_priors &= has_prior;
     }
+    // No covariance (report.bundle.covariance_note says why): whether the
+    // block determines f is not measured, and its geometry decides. Nadir
+    // photos of flat ground at one altitude cannot (f and the flying height
+    // are one unknown): held as if measured weak. Otherwise said.
+    if (options.auto_refine && report.bundle.intrinsics_precision.empty() && !report.bundle.covariance_note.empty()) {
+      if (report.geometry.nadir_flat_single_altitude) {
+        std::vector<char> used(model->cameras.size(), 0);
+        for (const Image& image : model->images) {
+          if (image.registered) used[image.camera] = 1;
+        }
+        for (size_t c = 0; c < used.size(); ++c) {
+          if (!used[c]) continue;
+          weak.push_back("camera " + std::to_string(model->cameras[c].id));
+          all_have_priors &= c < bundle.focal_prior_px.size() && bundle.focal_prior_px[c] > 0.0;
+        }
+        detail = "its precision could not be computed: " + report.bundle.covariance_note;
+      } else {
+        report.refinement_reason += " (their precision could not be computed: " + report.bundle.covariance_note +
+                                    "; the block is not nadir photos of flat ground at one altitude)";
+      }
+    }
     const std::string flat = report.geometry.nadir_flat_single_altitude
                                  ? " (nadir photos of flat ground at one altitude: f and the flying height are one "
                                    "unknown)"
