@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 
 namespace aerotri {
@@ -26,23 +27,27 @@ double Percentile(std::vector<double> v, double q) {
 
 }  // namespace
 
-BlockGeometry MeasureBlockGeometry(const SparseModel& model) {
+BlockGeometry MeasureBlockGeometry(const SparseModel& model, const Eigen::Vector3d& down_in) {
   BlockGeometry g;
+  const Eigen::Vector3d down = down_in.normalized();
   std::vector<std::vector<double>> depths(model.images.size());
+  std::vector<std::vector<Eigen::Vector3d>> samples(model.images.size());  // u, v, 1/z
   for (const Observation& obs : model.observations) {
     const Image& image = model.images[obs.image];
     if (!image.registered || model.points[obs.point].role != PointRole::kTie) continue;
-    const double z = image.pose.CamFromWorld(model.points[obs.point].position).z();
-    if (z > 0.0) depths[obs.image].push_back(z);
+    const Eigen::Vector3d x = image.pose.CamFromWorld(model.points[obs.point].position);
+    if (!(x.z() > 0.0)) continue;
+    depths[obs.image].push_back(x.z());
+    samples[obs.image].emplace_back(x.x() / x.z(), x.y() / x.z(), 1.0 / x.z());
   }
-  std::vector<double> median_depths, relief, heights, tilts, gsd, sigma_v;
+  std::vector<double> median_depths, relief, roughness, heights, tilts, gsd, sigma_v;
   for (size_t i = 0; i < model.images.size(); ++i) {
     const Image& image = model.images[i];
     if (!image.registered) continue;
     ++g.images;
-    heights.push_back(image.pose.centre_in_world.z());
+    heights.push_back(-down.dot(image.pose.centre_in_world));
     const Eigen::Vector3d axis = image.pose.cam_from_world.conjugate() * Eigen::Vector3d::UnitZ();
-    tilts.push_back(std::acos(std::clamp(-axis.z(), -1.0, 1.0)) * 180.0 / M_PI);
+    tilts.push_back(std::acos(std::clamp(axis.dot(down), -1.0, 1.0)) * 180.0 / M_PI);
     if (image.gps_prior) sigma_v.push_back(image.gps_prior->sigma_v_m);
     if (depths[i].size() < 10) continue;
     const double m = Median(depths[i]);
@@ -52,11 +57,28 @@ BlockGeometry MeasureBlockGeometry(const SparseModel& model) {
     for (double d : depths[i]) var += (d - mean) * (d - mean);
     median_depths.push_back(m);
     relief.push_back(std::sqrt(var / depths[i].size()) / m);
+    // A plane n·X = d in the camera frame has 1/z = (n1 u + n2 v + n3) / d.
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& s : samples[i]) {
+      const Eigen::Vector3d row(1.0, s.x(), s.y());
+      ata += row * row.transpose();
+      atb += row * s.z();
+    }
+    const Eigen::Vector3d plane = ata.ldlt().solve(atb);
+    std::vector<double> residuals;
+    for (const Eigen::Vector3d& s : samples[i]) {
+      residuals.push_back(std::abs(s.z() - plane.dot(Eigen::Vector3d(1.0, s.x(), s.y()))));
+    }
+    // Robust (1.4826 MAD): a few mismatched points far off the ground are
+    // not relief.
+    roughness.push_back(1.4826 * Median(residuals) * m);  // δ(1/z) · z ≈ δz / z
     const auto& focal = model.cameras[image.camera].info().focal_params;
     if (!focal.empty()) gsd.push_back(m / model.cameras[image.camera].params[focal[0]]);
   }
   g.median_depth_m = Median(median_depths);
   g.relief_ratio = Median(relief);
+  g.roughness_ratio = Median(roughness);
   g.tilt_p90_deg = Percentile(tilts, 0.9);
   g.gsd_m = Median(gsd);
   g.gps_sigma_v_m = Median(sigma_v);

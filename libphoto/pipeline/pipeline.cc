@@ -227,6 +227,7 @@ bool RunReconstructStage(const PipelineOptions& o) {
   doc.adjustment_iterations = result.adjustment_iterations;
   doc.local_adjustments = result.local_adjustments;
   doc.local_adjustment_s = result.local_adjustment_s;
+  doc.focal_held = result.focal_held;
   doc.registered = static_cast<int>(registered.images.size());
   doc.component_images = result.component_images;
   for (size_t i = 0; i < ingest.names.size(); ++i) {
@@ -378,7 +379,8 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["images"] = {{"total", ingest.names.size()}, {"registered", registered}, {"per_image", images}};
   report["reconstruction"] = {{"initial_pair", recon.initial_pair},
                               {"tracks", recon.tracks},
-                              {"component_images", recon.component_images}};
+                              {"component_images", recon.component_images},
+                              {"focal_held", recon.focal_held}};
   if (fs::exists(o.workspace / "matches.json")) {
     const json m = ToJson(LoadMatchRecord(o));
     report["matching"] = {{"strategy", m.at("strategy")},

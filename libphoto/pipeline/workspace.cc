@@ -293,6 +293,7 @@ nlohmann::json ToJson(const ReconstructionRecord& r) {
           {"local_adjustments", r.local_adjustments},
           {"local_adjustment_s", r.local_adjustment_s},
           {"registered", r.registered},
+          {"focal_held", r.focal_held},
           {"component_images", r.component_images},
           {"images", images},
           {"options", r.options}};
@@ -310,6 +311,7 @@ ReconstructionRecord ReconstructionRecordFromJson(const nlohmann::json& doc, con
   r.local_adjustments = doc.value("local_adjustments", 0);
   r.local_adjustment_s = doc.value("local_adjustment_s", 0.0);
   r.registered = Field<int>(doc, "registered", path);
+  r.focal_held = doc.value("focal_held", false);
   r.component_images = doc.value("component_images", std::vector<int>{r.registered});
   for (const auto& im : Field<nlohmann::json>(doc, "images", path)) {
     ReconstructionRecord::Image image;

@@ -99,6 +99,7 @@ struct ReconstructionRecord {
   int local_adjustments = 0;
   double local_adjustment_s = 0.0;
   int registered = 0;
+  bool focal_held = false;  // by the mapper (nadir, flat ground, one altitude)
   struct Image {
     std::string name;
     bool registered = false;

@@ -357,6 +357,7 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
     pj["computed"] = p.computed;
     if (!p.computed) pj["note"] = p.note;
     pj["variance_factor"] = p.variance_factor;
+    if (p.computed) pj["undetermined_points"] = p.undetermined_points;
     pj["scaling"] = "every sigma is a-posteriori: the a-priori covariance (J^T J)^-1 times sigma0^2 (with variance "
                     "components estimated, J weighed by each group's estimated sigma, and sigma0 1)";
     pj["time_s"] = p.time_s;
@@ -476,6 +477,7 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   j["adjustment"]["block_geometry"] = {{"images", g.images},
                                        {"median_depth_m", g.median_depth_m},
                                        {"relief_ratio", g.relief_ratio},
+                                       {"roughness_ratio", g.roughness_ratio},
                                        {"height_variation_ratio", g.height_variation_ratio},
                                        {"tilt_p90_deg", g.tilt_p90_deg},
                                        {"gsd_m", g.gsd_m},

@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
 
+#include "libphoto/adjust/block_geometry.h"
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/adjust/findings.h"
 #include "libphoto/adjust/gnss_drift.h"
@@ -143,6 +144,7 @@ class Mapper {
     result.model = std::move(model_);
     result.images = status_;
     result.global_adjustments = adjustments_;
+    result.focal_held = focal_held_;
     result.adjustment_s = adjustment_s_;
     result.adjustment_iterations = adjustment_iterations_;
     result.local_adjustments = local_adjustments_;
@@ -627,11 +629,15 @@ class Mapper {
     o.max_iterations = final_round ? 100 : 40;
     o.least_squares_after_screening = options_.global_adjust_screening;
     const int n = NumRegistered();
-    if (final_round) {
+    const bool hold_focal = n >= 5 && HoldFocal();
+    if (final_round && !hold_focal) {
       o.refine_intrinsics = IntrinsicsRefinement::kAll;
+    } else if (final_round) {
+      o.refine_intrinsics = IntrinsicsRefinement::kList;
+      o.refine_params = {"cx", "cy", "k1", "k2", "k3", "p1", "p2"};
     } else if (n >= 5) {
       o.refine_intrinsics = IntrinsicsRefinement::kList;
-      o.refine_params = {"f", "k1", "k2"};
+      o.refine_params = hold_focal ? std::vector<std::string>{"k1", "k2"} : std::vector<std::string>{"f", "k1", "k2"};
     } else {
       o.refine_intrinsics = IntrinsicsRefinement::kNone;
     }
@@ -661,6 +667,43 @@ class Mapper {
     for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
       if (point_of_track_[t] < 0) TriangulateTrack(static_cast<int>(t));
     }
+  }
+
+  // Nadir photos of flat ground at one altitude (block_geometry.h, measured
+  // along the block's mean optical axis; flat: the depths within each photo
+  // lie on a plane to kPlanarRoughnessRatio): the image scale is f over the
+  // depth, and the depth is the model's own, so the focal length is not in
+  // the photos at all. Refined, it wanders wherever the slightest systematic
+  // pulls it (on crop rows, from 520 to 982 px against a 10 % EXIF prior,
+  // which weighs nothing against 10^5 observations) and bends the model
+  // with it. Held at its EXIF / certificate value there (set back to it if
+  // an earlier round moved it); the georeference decides with GPS and
+  // control whether the block determines it. Without a measured value for
+  // every camera there is nothing to hold it at.
+  bool HoldFocal() {
+    std::vector<char> used(model_.cameras.size(), 0);
+    for (const Image& image : model_.images) {
+      if (image.registered) used[image.camera] = 1;
+    }
+    for (size_t c = 0; c < used.size(); ++c) {
+      if (used[c] && !(c < options_.focal_prior_px.size() && options_.focal_prior_px[c] > 0.0)) return false;
+    }
+    // The axes' mean as the vertical: a first strip's centres lie along a
+    // line, which MeasureViewingGeometry cannot call nadir yet, but the
+    // focal length wanders from the first adjustment that frees it.
+    const ViewingGeometry view = MeasureViewingGeometry(model_);
+    if (view.images < 3 || !(view.mean_axis.norm() > 0.0) || view.spread_deg > 15.0) return false;
+    const BlockGeometry g = MeasureBlockGeometry(model_, view.mean_axis);
+    if (!(g.roughness_ratio < kPlanarRoughnessRatio && g.height_variation_ratio < 0.05 && g.tilt_p90_deg < 15.0)) {
+      return false;
+    }
+    for (size_t c = 0; c < used.size(); ++c) {
+      if (!used[c]) continue;
+      Camera& camera = model_.cameras[c];
+      camera.params[camera.info().focal_params.at(0)] = options_.focal_prior_px[c];
+    }
+    focal_held_ = true;
+    return true;
   }
 
   // Registrations that disagree with their GPS (see the header). Returns
@@ -771,6 +814,7 @@ class Mapper {
   std::map<std::string, GimbalAttitude> gimbal_;  // by image name
   int adjustments_ = 0;
   int adjustment_iterations_ = 0;
+  bool focal_held_ = false;
   double adjustment_s_ = 0.0;
   int local_adjustments_ = 0;
   double local_adjustment_s_ = 0.0;
