@@ -25,7 +25,10 @@ struct RelativePose {
 };
 
 // a[k] and b[k] are one point's normalised coordinates (x/z, y/z) in the two
-// views; threshold in normalised units (pixels / focal length).
+// views; threshold in normalised units (pixels / focal length). Of a plane
+// (a homography explains 90 % of the inliers or more) the two solutions
+// that keep every point in front are told apart by the plane's facing: the
+// one whose plane faces view a more squarely is returned.
 std::optional<RelativePose> EstimateRelativePose(const std::vector<Eigen::Vector2d>& a,
                                                  const std::vector<Eigen::Vector2d>& b, double threshold);
 
