@@ -51,6 +51,7 @@ TEST(BlockGeometry, TellsAFlatNadirBlockFromOneWithRelief) {
   const BlockGeometry g = MeasureBlockGeometry(flat.truth);
   EXPECT_TRUE(g.nadir_flat_single_altitude);
   EXPECT_LT(g.relief_ratio, 0.02);
+  EXPECT_LT(g.roughness_ratio, 0.2 * kPlanarRoughnessRatio);
   EXPECT_LT(g.tilt_p90_deg, 2.0);
   // 80 m above mean ground with a 3000 px focal length.
   EXPECT_NEAR(g.median_depth_m, 80.0, 2.0);
@@ -59,7 +60,17 @@ TEST(BlockGeometry, TellsAFlatNadirBlockFromOneWithRelief) {
   const SyntheticSurvey hilly = MakeSyntheticSurvey(Block(1, 40.0, 0.3));
   const BlockGeometry h = MeasureBlockGeometry(hilly.truth);
   EXPECT_GT(h.relief_ratio, 0.05);
+  EXPECT_GT(h.roughness_ratio, 2.0 * kPlanarRoughnessRatio);
   EXPECT_FALSE(h.nadir_flat_single_altitude);
+
+  // Flat ground under cameras tilted up to 8 degrees: the depths spread
+  // across each photo as over relief (relief_ratio), yet lie on a plane
+  // (roughness_ratio): still a flat block.
+  const SyntheticSurvey tilted = MakeSyntheticSurvey(Block(1, 0.0, 4.0));
+  const BlockGeometry t = MeasureBlockGeometry(tilted.truth);
+  EXPECT_GT(t.relief_ratio, g.relief_ratio + 0.01);
+  EXPECT_LT(t.roughness_ratio, 0.2 * kPlanarRoughnessRatio);
+  EXPECT_TRUE(t.nadir_flat_single_altitude);
 }
 
 // dz = a + amplitude r² / R² plus noise: the fit recovers the amplitude

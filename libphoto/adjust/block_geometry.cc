@@ -89,7 +89,8 @@ BlockGeometry MeasureBlockGeometry(const SparseModel& model, const Eigen::Vector
     for (double h : heights) var += (h - mean) * (h - mean);
     g.height_variation_ratio = std::sqrt(var / heights.size()) / g.median_depth_m;
   }
-  g.nadir_flat_single_altitude = g.relief_ratio < 0.05 && g.height_variation_ratio < 0.05 && g.tilt_p90_deg < 15.0;
+  g.nadir_flat_single_altitude =
+      g.roughness_ratio < kPlanarRoughnessRatio && g.height_variation_ratio < 0.05 && g.tilt_p90_deg < 15.0;
   return g;
 }
 

@@ -42,8 +42,9 @@ struct BlockGeometry {
   double tilt_p90_deg = 0.0;          // 90th percentile of optical axes' angle from nadir
   double gsd_m = 0.0;                 // median depth / focal length
   double gps_sigma_v_m = 0.0;         // median vertical sigma of the GPS priors (0: none)
-  // Nadir photos of flat ground at one altitude: relief and flying-height
-  // variation under 5 % of the flying height, views within 15 deg of nadir.
+  // Nadir photos of flat ground at one altitude: the depths in each photo
+  // within kPlanarRoughnessRatio of a plane, flying-height variation under
+  // 5 % of the flying height, views within 15 deg of nadir.
   bool nadir_flat_single_altitude = false;
 };
 

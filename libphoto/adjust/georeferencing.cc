@@ -85,6 +85,12 @@ std::string FormatDegrees(double deg) {
   return text;
 }
 
+std::string FormatPercent(double fraction) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.2f %%", 100.0 * fraction);
+  return text;
+}
+
 std::string FormatMetres(double m) {
   char text[32];
   std::snprintf(text, sizeof text, "%.3f m", m);
@@ -1110,6 +1116,34 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   report.refinement_auto = options.auto_refine;
   BundleOptions bundle = options.bundle;
   if (options.auto_refine) bundle.refine_intrinsics = IntrinsicsRefinement::kAll;
+  // Except on nadir photos of flat ground at one altitude without control
+  // heights: there f and the flying height are one unknown, which only the
+  // GPS heights' metres hold, and a covariance sigma under 1 % is no
+  // guarantee (0.94 % let f land 2.3 % off on a rendered crop-row field).
+  // Held at its EXIF / certificate value from the outset; the rest refined.
+  bool focal_held_flat = false;
+  if (options.auto_refine && report.geometry.nadir_flat_single_altitude) {
+    bool control_heights = false;
+    for (const SurveyedPoint& s : surveyed) {
+      control_heights |= s.role == PointRole::kControl && s.excluded.empty() && !s.source->horizontal_only;
+    }
+    std::vector<char> used(model->cameras.size(), 0);
+    for (const Image& image : model->images) {
+      if (image.registered) used[image.camera] = 1;
+    }
+    bool priors = true;
+    for (size_t c = 0; c < used.size(); ++c) {
+      if (used[c]) priors &= c < bundle.focal_prior_px.size() && bundle.focal_prior_px[c] > 0.0;
+    }
+    if (!control_heights && priors) {
+      for (size_t c = 0; c < used.size(); ++c) {
+        if (used[c]) model->cameras[c].params[model->cameras[c].info().focal_params.at(0)] = bundle.focal_prior_px[c];
+      }
+      bundle.refine_intrinsics = IntrinsicsRefinement::kList;
+      bundle.refine_params = {"cx", "cy", "k1", "k2", "k3", "p1", "p2"};
+      focal_held_flat = true;
+    }
+  }
 
   GpsVersusControl& versus = report.gps_vs_control;
   // Observations the adjustment on control alone rejected left the model
@@ -1304,6 +1338,13 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
   report.refined = report.bundle.refined_intrinsics;
   report.refinement_reason = options.auto_refine ? "every intrinsic refined: the block determines them"
                                                  : "as asked (--refine)";
+  if (focal_held_flat) {
+    report.refinement_reason =
+        "focal length held at its EXIF / certificate value: nadir photos of flat ground at one altitude (depths "
+        "within " + FormatPercent(report.geometry.roughness_ratio) + " of a plane in each photo) and no control "
+        "heights, so f and the flying height are one unknown; the rest refined";
+    report.findings.push_back(Finding::Warning("FOCAL_HELD", report.refinement_reason));
+  }
   // A focal length the block does not determine: held at its prior (auto),
   // or flagged.
   {
@@ -1331,7 +1372,8 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     // block determines f is not measured, and its geometry decides. Nadir
     // photos of flat ground at one altitude cannot (f and the flying height
     // are one unknown): held as if measured weak. Otherwise said.
-    if (options.auto_refine && report.bundle.intrinsics_precision.empty() && !report.bundle.covariance_note.empty()) {
+    if (options.auto_refine && !focal_held_flat && report.bundle.intrinsics_precision.empty() &&
+        !report.bundle.covariance_note.empty()) {
       if (report.geometry.nadir_flat_single_altitude) {
         std::vector<char> used(model->cameras.size(), 0);
         for (const Image& image : model->images) {
