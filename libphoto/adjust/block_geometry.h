@@ -50,10 +50,12 @@ struct BlockGeometry {
 
 // Roughness (BlockGeometry::roughness_ratio) under which a block's photos
 // are of a plane as far as the focal length goes. Measured: 0.0015-0.002 on
-// a rendered crop-row survey (1.5 m of relief under a 50 m flight) and on a
-// synthetic block with 0.3 m of relief under 60 m; 0.009-0.013 over 12 m of
-// relief under 60 m, whose photos determine f to 0.5 %.
-inline constexpr double kPlanarRoughnessRatio = 0.005;
+// a rendered crop-row survey (1.5 m of relief under a 50 m flight), whose f
+// wandered from 520 to 982 px when refined, and on a synthetic block with
+// 0.3 m of relief under 60 m; 0.004-0.008 on the real Brighton Beach set,
+// whose photos determine f (1140 px, against an EXIF value of 936 that its
+// 16:9 crop makes wrong); 0.009-0.013 over 12 m of relief under 60 m.
+inline constexpr double kPlanarRoughnessRatio = 0.003;
 
 // Measures a model in a metric, up-is-z frame (tie points only); with
 // `down`, in any frame whose vertical that is (e.g. a nadir block's mean
