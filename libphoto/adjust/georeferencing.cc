@@ -85,6 +85,15 @@ std::string FormatDegrees(double deg) {
   return text;
 }
 
+// Per camera group: whether a registered image uses it.
+std::vector<char> CamerasInUse(const SparseModel& model) {
+  std::vector<char> used(model.cameras.size(), 0);
+  for (const Image& image : model.images) {
+    if (image.registered) used[image.camera] = 1;
+  }
+  return used;
+}
+
 std::string FormatPercent(double fraction) {
   char text[32];
   std::snprintf(text, sizeof text, "%.2f %%", 100.0 * fraction);
@@ -1127,10 +1136,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     for (const SurveyedPoint& s : surveyed) {
       control_heights |= s.role == PointRole::kControl && s.excluded.empty() && !s.source->horizontal_only;
     }
-    std::vector<char> used(model->cameras.size(), 0);
-    for (const Image& image : model->images) {
-      if (image.registered) used[image.camera] = 1;
-    }
+    const std::vector<char> used = CamerasInUse(*model);
     bool priors = true;
     for (size_t c = 0; c < used.size(); ++c) {
       if (used[c]) priors &= c < bundle.focal_prior_px.size() && bundle.focal_prior_px[c] > 0.0;
@@ -1375,10 +1381,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model,
     if (options.auto_refine && !focal_held_flat && report.bundle.intrinsics_precision.empty() &&
         !report.bundle.covariance_note.empty()) {
       if (report.geometry.nadir_flat_single_altitude) {
-        std::vector<char> used(model->cameras.size(), 0);
-        for (const Image& image : model->images) {
-          if (image.registered) used[image.camera] = 1;
-        }
+        const std::vector<char> used = CamerasInUse(*model);
         for (size_t c = 0; c < used.size(); ++c) {
           if (!used[c]) continue;
           weak.push_back("camera " + std::to_string(model->cameras[c].id));

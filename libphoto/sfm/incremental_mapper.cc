@@ -630,6 +630,7 @@ class Mapper {
     o.least_squares_after_screening = options_.global_adjust_screening;
     const int n = NumRegistered();
     const bool hold_focal = n >= 5 && HoldFocal();
+    focal_held_ = hold_focal;  // the last adjustment's, which the model leaves with
     if (final_round && !hold_focal) {
       o.refine_intrinsics = IntrinsicsRefinement::kAll;
     } else if (final_round) {
@@ -702,7 +703,6 @@ class Mapper {
       Camera& camera = model_.cameras[c];
       camera.params[camera.info().focal_params.at(0)] = options_.focal_prior_px[c];
     }
-    focal_held_ = true;
     return true;
   }
 

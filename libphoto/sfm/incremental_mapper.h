@@ -136,8 +136,9 @@ struct MapperResult {
   std::vector<int> component;
   // Registered photos per component (main model first).
   std::vector<int> component_images;
-  // The focal length was held at its EXIF / certificate value: the block is
-  // nadir photos of flat ground at one altitude, which cannot determine it.
+  // The last global adjustment held the focal length at its EXIF /
+  // certificate value: the block is nadir photos of flat ground at one
+  // altitude, which cannot determine it.
   bool focal_held = false;
 };
 
