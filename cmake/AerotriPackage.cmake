@@ -20,7 +20,7 @@ install(FILES ${PROJECT_BINARY_DIR}/aerotriConfig.cmake
 # first) followed by what they need. Ceres has no .pc file on Debian; it and
 # its glog are named directly.
 set(AEROTRI_PC_LIBS "")
-foreach(lib pipeline simulate report export dense sfm adjust geometry matching features
+foreach(lib pipeline simulate report export dense sfm survey adjust geometry matching features
             ingest io model georef camera base)
   string(APPEND AEROTRI_PC_LIBS " -laerotri_${lib}")
 endforeach()

@@ -2,15 +2,15 @@
 // Block geometry, the dome test and the refinement policy on synthetic blocks
 // with known truth (46.5 N, 7.5 E; 4000 x 3000 px, f 3000 px, 80 m flying
 // height: GSD 2.7 cm).
-#include "libphoto/adjust/block_geometry.h"
+#include "libphoto/survey/block_geometry.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-#include "libphoto/adjust/georeferencing.h"
-#include "libphoto/adjust/gnss_drift.h"
+#include "libphoto/survey/georeferencing.h"
+#include "libphoto/survey/gnss_drift.h"
 #include "libphoto/simulate/synthetic_survey.h"
 #include "libphoto/simulate/synthetic_georef.h"
 #include "tests/test_util.h"

@@ -8,7 +8,7 @@
 
 #include <fstream>
 
-#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/survey/georeferencing.h"
 #include "libphoto/base/error.h"
 #include "libphoto/simulate/synthetic_georef.h"
 #include "tests/test_util.h"

@@ -2,7 +2,7 @@
 // Georeferenced adjustment on a synthetic survey with known truth at a real
 // location (46.5 N, 7.5 E; UTM 32N): GPS sigma 2 m horizontal / 4 m vertical,
 // 8 control points with 1 cm survey noise, 6 check points, 0.3 px image noise.
-#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/survey/georeferencing.h"
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // resection and forward intersection must start the bundle close enough that
 // it ends where an adjustment of the reconstruction ends, and whatever cannot
 // be oriented is named.
-#include "libphoto/adjust/initial_orientation.h"
+#include "libphoto/survey/initial_orientation.h"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include <random>
 
 #include "libphoto/adjust/camera_file.h"
-#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/survey/georeferencing.h"
 #include "libphoto/base/error.h"
 #include "libphoto/simulate/synthetic_georef.h"
 #include "tests/test_util.h"

@@ -10,7 +10,7 @@
 #include <random>
 #include <sstream>
 
-#include "libphoto/adjust/gnss_drift.h"
+#include "libphoto/survey/gnss_drift.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/io/colmap_text.h"
 #include "libphoto/simulate/survey_writer.h"

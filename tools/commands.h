@@ -13,7 +13,7 @@
 
 #include "georef/gps_fix.h"
 #include "libphoto/adjust/bundle_adjuster.h"
-#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/survey/georeferencing.h"
 #include "libphoto/sfm/incremental_mapper.h"
 #include "tools/tool_context.h"
 

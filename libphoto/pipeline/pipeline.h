@@ -27,7 +27,7 @@
 #include <vector>
 
 #include "georef/gcp_file.h"
-#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/survey/georeferencing.h"
 #include "libphoto/features/features.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/matching/matching.h"

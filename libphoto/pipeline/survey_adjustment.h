@@ -14,7 +14,7 @@
 
 #include "georef/gcp_file.h"
 #include "georef/gps_fix.h"
-#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/survey/georeferencing.h"
 #include "libphoto/model/sparse_model.h"
 
 namespace aerotri {

@@ -27,11 +27,11 @@
 //     residual_px, redundancy, w, suspect, rejected}]}, ...},
 //   status "ok" | "warnings" | "failed",
 //   warnings [{code, message, items[]}], errors [{code, message, items[]}]
-//     (codes: libphoto/adjust/findings.h).
+//     (codes: libphoto/survey/findings.h).
 
 #include <nlohmann/json.hpp>
 
-#include "libphoto/adjust/georeferencing.h"
+#include "libphoto/survey/georeferencing.h"
 
 namespace aerotri {
 

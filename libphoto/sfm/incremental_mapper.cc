@@ -10,10 +10,10 @@
 #include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
 
-#include "libphoto/adjust/block_geometry.h"
+#include "libphoto/survey/block_geometry.h"
 #include "libphoto/adjust/bundle_adjuster.h"
-#include "libphoto/adjust/findings.h"
-#include "libphoto/adjust/gnss_drift.h"
+#include "libphoto/survey/findings.h"
+#include "libphoto/survey/gnss_drift.h"
 #include "libphoto/base/error.h"
 #include "georef/similarity.h"
 #include "libphoto/sfm/guided_matching.h"

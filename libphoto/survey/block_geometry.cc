@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "libphoto/adjust/block_geometry.h"
+#include "libphoto/survey/block_geometry.h"
 
 #include <algorithm>
 #include <cmath>

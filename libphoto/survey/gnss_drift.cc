@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "libphoto/adjust/gnss_drift.h"
+#include "libphoto/survey/gnss_drift.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/Eigenvalues>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "libphoto/adjust/initial_orientation.h"
+#include "libphoto/survey/initial_orientation.h"
 
 #include <algorithm>
 #include <cmath>

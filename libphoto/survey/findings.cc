@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: BSD-3-Clause
-#include "libphoto/adjust/findings.h"
+#include "libphoto/survey/findings.h"
 
 #include <utility>
 

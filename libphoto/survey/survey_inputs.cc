@@ -1,0 +1,380 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The survey's first phases: inputs checked, frame and datum chosen, priors
+// attached (survey_phases.h).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "libphoto/base/error.h"
+#include "libphoto/survey/survey_phases.h"
+
+namespace aerotri {
+namespace {
+
+constexpr double kNoHeightSigmaM = 1e4;  // the vertical prior of a control point in plan only
+
+// A local engineering frame: every CRS given must be one, in one unit, and
+// the camera positions too; the frame is re-centred on the control's mean
+// (its stand-in stays small) and the camera positions placed on it.
+void PlaceLocalFrame(SurveyState* s) {
+  const std::pair<const char*, std::optional<Crs>*> all[] = {
+      {"the control file's", &s->control_crs}, {"the check file's", &s->check_crs}, {"--crs", &s->requested_crs}};
+  std::optional<double> unit;
+  for (const auto& [what, crs] : all) {
+    if (!*crs) continue;
+    if (!(*crs)->IsLocal()) {
+      throw InvalidArgument(std::string(what) + " CRS '" + (*crs)->definition() +
+                            "' is geodetic while another is a local engineering frame: a local frame has no "
+                            "transformation to it; give the control, check points and --crs in one local frame");
+    }
+    if (unit && std::abs(*unit - (*crs)->LocalUnitMetres()) > 1e-12) {
+      throw InvalidArgument("the control and check files' local frames have different length units");
+    }
+    unit = (*crs)->LocalUnitMetres();
+  }
+  for (const auto& [name, fix] : s->gps) {
+    if (!fix.local_xyz) {
+      throw InvalidArgument("GPS positions are geodetic (EXIF, or --gps-csv latitude / longitude) and the control "
+                            "is in a local engineering frame, which has no geodetic link: adjust without GPS (no "
+                            "--images / --gps-csv), give the camera positions in the same local frame (a geo.txt "
+                            "whose first line is LOCAL), or give the control in a geodetic CRS");
+    }
+    if (unit && std::abs(*unit - fix.local_unit_m) > 1e-12) {
+      throw InvalidArgument("the camera positions' local frame (image " + name +
+                            ") has another length unit than the control's");
+    }
+  }
+  // Coordinates about the control's centre keep the stand-in small.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const GcpFile* file : {s->control, s->checks}) {
+    if (!file || (file == s->checks && n > 0)) continue;
+    for (const GroundPoint& point : file->points) {
+      if (point.horizontal_only) continue;
+      mean += point.xyz;
+      ++n;
+    }
+  }
+  if (n > 0) mean /= n;
+  s->report.local_origin = mean;
+  for (const auto& [what, crs] : all) {
+    if (*crs) *crs = (*crs)->LocalAt(mean);
+  }
+  // Camera positions on the same stand-in as the control.
+  const Crs& frame_crs = s->control_crs ? *s->control_crs : s->check_crs ? *s->check_crs : *s->requested_crs;
+  for (auto& [name, fix] : s->gps) fix.position = frame_crs.ToGeodetic(*fix.local_xyz);
+}
+
+// The control and check points in WGS84. A point without a surveyed height
+// is converted at the median height of the file's others (the horizontal
+// position barely depends on it).
+void ReadSurveyedPoints(SurveyState* s) {
+  for (const GcpFile* file : {s->control, s->checks}) {
+    if (!file) continue;
+    const Crs& crs = file == s->control ? *s->control_crs : *s->check_crs;
+    std::vector<double> heights;
+    for (const GroundPoint& point : file->points) {
+      if (!point.horizontal_only) heights.push_back(point.xyz.z());
+    }
+    double fill_z = 0.0;
+    if (!heights.empty()) {
+      std::nth_element(heights.begin(), heights.begin() + heights.size() / 2, heights.end());
+      fill_z = heights[heights.size() / 2];
+    }
+    for (const GroundPoint& point : file->points) {
+      SurveyedPoint p;
+      p.source = &point;
+      Eigen::Vector3d xyz = point.xyz;
+      if (point.horizontal_only) xyz.z() = fill_z;
+      p.geodetic = crs.ToGeodetic(xyz);
+      p.role = file == s->control ? PointRole::kControl : PointRole::kCheck;
+      if (point.horizontal_only && p.role == PointRole::kCheck) {
+        p.excluded = "no surveyed height ('nan'): a check point needs all three coordinates";
+      }
+      s->surveyed.push_back(p);
+    }
+  }
+}
+
+// ENU origin: the caller's, else the mean GPS of the model's images, else
+// the mean control point; a local frame adjusts on its stand-in's own
+// tangent plane (exactly the file's Cartesian coordinates).
+void ChooseEnuOrigin(SurveyState* s) {
+  const SparseModel& model = *s->model;
+  double lat = 0, lon = 0, h = 0;
+  int n = 0;
+  for (const auto& [name, fix] : s->gps) {
+    const auto it = s->image_by_name.find(name);
+    if (it == s->image_by_name.end() || !model.images[it->second].registered) continue;
+    lat += fix.position.lat_deg;
+    lon += fix.position.lon_deg;
+    h += fix.position.h_m;
+    ++n;
+  }
+  if (n == 0) {
+    for (const SurveyedPoint& p : s->surveyed) {
+      if (p.role != PointRole::kControl) continue;
+      lat += p.geodetic.lat_deg;
+      lon += p.geodetic.lon_deg;
+      h += p.geodetic.h_m;
+      ++n;
+    }
+  }
+  if (n == 0) {
+    throw InvalidArgument("nothing to georeference with: no GPS position for any image of "
+                          "the model and no control points (give --gcp, or images with "
+                          "EXIF GPS, or --gps-csv)");
+  }
+  GeoreferenceReport& report = s->report;
+  report.enu_origin = s->Options().enu_origin ? *s->Options().enu_origin : Geodetic{lat / n, lon / n, h / n};
+  if (s->local) report.enu_origin = Crs::LocalGeodeticOrigin();
+  s->frame.emplace(report.enu_origin);
+}
+
+// The output CRS: --crs, else the control file's, else the UTM zone of the
+// survey's centre; with the axes its residuals are given on.
+void ChooseOutputCrs(SurveyState* s) {
+  GeoreferenceReport& report = s->report;
+  if (s->requested_crs) {
+    s->out_crs = s->requested_crs;
+    report.crs_source = "--crs";
+  } else if (s->control_crs) {
+    s->out_crs = s->control_crs;
+    report.crs_source = "control file";
+  } else {
+    s->out_crs = Crs::UtmFor(report.enu_origin);
+    report.crs_source = "UTM zone of the survey centre";
+  }
+  const Crs& out = *s->out_crs;
+  report.crs = out.definition();
+  report.crs_name = out.Name();
+  report.residuals_in_crs_units = !out.IsGeographic() && !out.IsGeocentric();
+  report.axes = out.IsLocal()        ? "x, y, z of the local engineering frame (its unit)"
+                : out.IsGeographic() ? "local east, north, up (metres; the CRS is geographic)"
+                : out.IsGeocentric() ? "local east, north, up (metres): the CRS is geocentric, whose X, Y, Z "
+                                       "have no horizontal or vertical meaning"
+                                     : "easting, northing, height of the CRS (its unit)";
+  report.output_crs = s->out_crs;
+}
+
+void AttachGpsPriors(SurveyState* s) {
+  for (Image& image : s->model->images) image.gps_prior.reset();
+  for (const auto& [name, fix] : s->gps) {
+    const auto it = s->image_by_name.find(name);
+    if (it == s->image_by_name.end()) continue;
+    Image& image = s->model->images[it->second];
+    PositionPrior prior;
+    prior.position = s->Frame().EnuFromGeodetic(fix.position);
+    prior.sigma_h_m = fix.sigma_h_m;
+    prior.sigma_v_m = fix.sigma_v_m;
+    image.gps_prior = prior;
+    ++s->num_gps;
+  }
+}
+
+// Surveyed points that cannot belong to the survey: horizontally farther
+// from every GPS camera position than the photos can see (three flying
+// heights) plus five GPS sigmas and 50 m. A control file in another zone,
+// hemisphere or CRS, or with its axes swapped or negated, ends here; its
+// points must not pull the block.
+void ExcludeControlOutsideSurvey(SurveyState* s) {
+  std::vector<Eigen::Vector3d> cameras;
+  std::vector<double> sigmas, heights;
+  for (const Image& image : s->model->images) {
+    if (!image.registered || !image.gps_prior) continue;
+    cameras.push_back(image.gps_prior->position);
+    sigmas.push_back(image.gps_prior->sigma_h_m);
+    heights.push_back(image.gps_prior->position.z());
+  }
+  if (cameras.size() < 3 || s->local) return;
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  const LocalFrame& frame = s->Frame();
+  std::vector<double> ground;
+  for (const SurveyedPoint& p : s->surveyed) {
+    if (!p.source->horizontal_only) ground.push_back(frame.EnuFromGeodetic(p.geodetic).z());
+  }
+  const double flying = ground.empty() ? 0.0 : std::abs(median(heights) - median(ground));
+  const double limit = 3.0 * flying + 5.0 * median(sigmas) + 50.0;
+  std::vector<std::string> far;
+  for (SurveyedPoint& p : s->surveyed) {
+    const Eigen::Vector3d at = frame.EnuFromGeodetic(p.geodetic);
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& c : cameras) nearest = std::min(nearest, (at - c).head<2>().norm());
+    if (nearest <= limit) continue;
+    char text[160];
+    std::snprintf(text, sizeof text, "%.0f m from the nearest GPS camera position (the photos see %.0f m)",
+                  nearest, limit);
+    p.excluded = std::string("outside the survey: ") + text;
+    far.push_back(p.source->name);
+  }
+  if (far.empty()) return;
+  s->report.findings.push_back(Finding::Error(
+      "CONTROL_OUTSIDE_SURVEY",
+      std::to_string(far.size()) + " surveyed points lie outside the photographed area (farther from every GPS "
+      "camera position than three flying heights and five GPS sigmas): " + JoinNames(far) +
+      "; left out. A wrong CRS line, zone or hemisphere, swapped or negated axes, or another site's file?",
+      far));
+}
+
+// The prior of a surveyed point in the adjustment frame: its file's sigmas
+// (per axis turned onto the frame's, Σ = J⁻¹ D J⁻ᵀ), or the defaults; a
+// point in plan only holds no height.
+PositionPrior SurveyedPrior(const SurveyState& s, const SurveyedPoint& p) {
+  const GeoreferenceOptions& options = s.Options();
+  PositionPrior prior;
+  prior.position = s.Frame().EnuFromGeodetic(p.geodetic);
+  prior.sigma_h_m = p.source->sigma_h_m.value_or(options.gcp_sigma_h_m);
+  prior.sigma_v_m = p.source->sigma_v_m.value_or(options.gcp_sigma_v_m);
+  if (p.source->sigma_xyz_m) {
+    const Crs& crs = p.role == PointRole::kControl ? *s.control_crs : *s.check_crs;
+    const Eigen::Matrix3d j_inv = CrsFromEnuJacobian(s.Frame(), crs, prior.position).inverse();
+    const Eigen::Vector3d& sigma = *p.source->sigma_xyz_m;
+    prior.covariance = j_inv * sigma.cwiseAbs2().asDiagonal() * j_inv.transpose();
+    prior.sigma_h_m = std::max(sigma.x(), sigma.y());
+    prior.sigma_v_m = sigma.z();
+  }
+  if (p.source->horizontal_only) {
+    prior.sigma_v_m = kNoHeightSigmaM;
+    prior.covariance.reset();
+  }
+  return prior;
+}
+
+// A surveyed point's marks as observations of the model; marks on images
+// outside the model or outside the photo are skipped with a warning.
+void AddMarks(SurveyState* s, const SurveyedPoint& p) {
+  SparseModel* model = s->model;
+  const std::string& path = p.role == PointRole::kControl ? s->control->path : s->checks->path;
+  for (const GcpMeasurement& m : p.source->measurements) {
+    if (!p.excluded.empty()) break;
+    const auto it = s->image_by_name.find(m.image);
+    if (it == s->image_by_name.end()) {
+      s->report.findings.push_back(Finding::Warning(
+          "INPUT", path + ":" + std::to_string(m.line) + ": image '" + m.image + "' is not in the model; "
+                   "measurement skipped",
+          {p.source->name}));
+      continue;
+    }
+    const Camera& camera = model->cameras[model->images[it->second].camera];
+    if (!(m.xy_px.x() >= -0.5 && m.xy_px.y() >= -0.5 && m.xy_px.x() <= camera.width - 0.5 &&
+          m.xy_px.y() <= camera.height - 0.5)) {
+      char text[200];
+      std::snprintf(text, sizeof text, ": mark (%.1f, %.1f) px is outside image '%s' (%d x %d px); measurement "
+                    "skipped", m.xy_px.x(), m.xy_px.y(), m.image.c_str(), camera.width, camera.height);
+      s->report.findings.push_back(
+          Finding::Warning("INPUT", path + ":" + std::to_string(m.line) + text, {p.source->name}));
+      continue;
+    }
+    Observation obs;
+    obs.image = it->second;
+    obs.point = p.point_index;
+    obs.xy = m.xy_px;
+    obs.sigma_px = m.sigma_px.value_or(0.0);
+    model->observations.push_back(obs);
+  }
+}
+
+// Control and check points appended to the model with their observations.
+void AddSurveyedPoints(SurveyState* s) {
+  for (SurveyedPoint& p : s->surveyed) {
+    Point point;
+    point.id = static_cast<int>(s->model->points.size()) + 1000000;
+    point.name = p.source->name;
+    point.role = p.role;
+    point.color = p.role == PointRole::kControl ? std::array<std::uint8_t, 3>{255, 0, 0}
+                                                : std::array<std::uint8_t, 3>{0, 0, 255};
+    point.prior = SurveyedPrior(*s, p);
+    p.point_index = static_cast<int>(s->model->points.size());
+    s->model->points.push_back(point);
+    AddMarks(s, p);
+  }
+}
+
+}  // namespace
+
+SurveyState StartSurvey(SparseModel* model, const std::map<std::string, GpsFix>& gps, const GcpFile* control,
+                        const GcpFile* checks, const GeoreferenceOptions& options) {
+  AEROTRI_CHECK(model != nullptr);
+  SurveyState s;
+  s.model = model;
+  s.gps = gps;
+  s.control = control;
+  s.checks = checks;
+  s.options = &options;
+  model->Validate();
+  s.report.initial_cameras = model->cameras;
+  if (options.leave_one_out) s.start = *model;
+  return s;
+}
+
+std::optional<Finding> CheckDuplicatedMarks(const GcpFile* control, const GcpFile* checks) {
+  struct Mark {
+    std::string point, file;
+    int line;
+    Eigen::Vector2d xy;
+  };
+  std::map<std::string, std::vector<Mark>> by_image;
+  for (const GcpFile* f : {control, checks}) {
+    if (!f) continue;
+    for (const GroundPoint& p : f->points) {
+      for (const GcpMeasurement& m : p.measurements) by_image[m.image].push_back({p.name, f->path, m.line, m.xy_px});
+    }
+  }
+  std::vector<std::string> items, lines;
+  for (const auto& [image, marks] : by_image) {
+    for (size_t a = 0; a < marks.size(); ++a) {
+      for (size_t b = a + 1; b < marks.size(); ++b) {
+        if (marks[a].point == marks[b].point || (marks[a].xy - marks[b].xy).norm() > 2.0) continue;
+        items.push_back(marks[a].point + "/" + marks[b].point + " in " + image);
+        lines.push_back(marks[a].file + ":" + std::to_string(marks[a].line) + " and " + marks[b].file + ":" +
+                        std::to_string(marks[b].line));
+      }
+    }
+  }
+  if (items.empty()) return std::nullopt;
+  std::string text;
+  for (size_t k = 0; k < items.size() && k < 5; ++k) text += (k ? "; " : "") + items[k] + " (" + lines[k] + ")";
+  return Finding::Warning(
+      "MARK_DUPLICATED",
+      std::to_string(items.size()) + " target mark(s) labelled as two different points in one photo, within "
+      "2 px of each other: " + text + (items.size() > 5 ? "; ..." : "") +
+          "; one label is wrong (the w-test names the mark that fits worse)",
+      items);
+}
+
+void ChooseFrameAndDatum(SurveyState* s) {
+  if (s->control) s->control_crs = Crs::FromString(s->control->crs);
+  if (s->checks) s->check_crs = Crs::FromString(s->checks->crs);
+  if (!s->Options().output_crs.empty()) s->requested_crs = Crs::FromString(s->Options().output_crs);
+  s->local = (s->control_crs && s->control_crs->IsLocal()) || (s->check_crs && s->check_crs->IsLocal()) ||
+             (s->requested_crs && s->requested_crs->IsLocal());
+  if (s->local) {
+    PlaceLocalFrame(s);
+  } else {
+    for (const auto& [name, fix] : s->gps) {
+      if (fix.local_xyz) {
+        throw InvalidArgument("the camera position of " + name +
+                              " is in a local engineering frame and the control is not: a local frame has no "
+                              "transformation to a geodetic CRS; give both in one frame");
+      }
+    }
+  }
+  ReadSurveyedPoints(s);
+  for (size_t i = 0; i < s->model->images.size(); ++i) {
+    s->image_by_name[s->model->images[i].name] = static_cast<int>(i);
+  }
+  ChooseEnuOrigin(s);
+  ChooseOutputCrs(s);
+}
+
+void AttachPriors(SurveyState* s) {
+  AttachGpsPriors(s);
+  ExcludeControlOutsideSurvey(s);
+  AddSurveyedPoints(s);
+}
+
+}  // namespace aerotri

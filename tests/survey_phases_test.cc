@@ -1,0 +1,130 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// The survey adjustment's phases run alone (survey_phases.h), on a synthetic
+// survey with known truth (46.5 N, 7.5 E; UTM 32N; 8 control points with
+// 1 cm survey noise, 0.3 px marks) handed over in an arbitrary frame.
+#include "libphoto/survey/survey_phases.h"
+
+#include <gtest/gtest.h>
+
+#include "libphoto/base/error.h"
+#include "libphoto/simulate/synthetic_georef.h"
+
+namespace aerotri {
+namespace {
+
+SyntheticGeoref Scene() {
+  SyntheticSurveyOptions o;
+  o.seed = 5;
+  o.area_width_m = 200.0;
+  o.area_height_m = 150.0;
+  o.num_tie_points = 600;
+  o.pixel_noise_px = 0.3;
+  o.num_control_points = 8;
+  o.num_check_points = 4;
+  return MakeSyntheticGeoref(o, {});
+}
+
+// The model 20 times smaller, turned and moved: what another tool hands over.
+const Similarity& Arbitrary() {
+  static const Similarity s = [] {
+    Similarity t;
+    t.scale = 0.05;
+    t.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, 2, 3).normalized()));
+    t.translation = Eigen::Vector3d(3, -4, 5);
+    return t;
+  }();
+  return s;
+}
+
+GcpFile OneTarget(const std::vector<std::pair<std::string, Eigen::Vector2d>>& marks) {
+  GcpFile file;
+  file.path = "gcp_list.txt";
+  file.crs = "EPSG:32632";
+  int line = 2;
+  for (const auto& [name, xy] : marks) {
+    GroundPoint p;
+    p.name = name;
+    p.xyz = Eigen::Vector3d(400000, 5150000, 500);
+    p.measurements.push_back({"a.jpg", xy, line++, std::nullopt});
+    file.points.push_back(p);
+  }
+  return file;
+}
+
+TEST(SurveyPhases, TwoNamesOnOneTargetAreSaidWithTheirLines) {
+  const GcpFile twice = OneTarget({{"A", {100.0, 200.0}}, {"B", {101.0, 201.0}}});
+  const std::optional<Finding> finding = CheckDuplicatedMarks(&twice, nullptr);
+  ASSERT_TRUE(finding.has_value());
+  EXPECT_EQ(finding->code, "MARK_DUPLICATED");
+  EXPECT_NE(finding->message.find("A/B in a.jpg (gcp_list.txt:2 and gcp_list.txt:3)"), std::string::npos)
+      << finding->message;
+  // 3 px apart: two targets.
+  const GcpFile apart = OneTarget({{"A", {100.0, 200.0}}, {"B", {103.0, 200.0}}});
+  EXPECT_FALSE(CheckDuplicatedMarks(&apart, nullptr).has_value());
+}
+
+TEST(SurveyPhases, FrameAndDatumFollowTheGpsAndTheControlFile) {
+  const SyntheticGeoref scene = Scene();
+  SparseModel model = scene.tie_model;
+  const GeoreferenceOptions options;  // no --crs: the control file's
+  SurveyState s = StartSurvey(&model, scene.gps, &scene.control, &scene.checks, options);
+  ChooseFrameAndDatum(&s);
+  EXPECT_EQ(s.report.crs_source, "control file");
+  EXPECT_EQ(s.report.crs, "EPSG:32632");
+  EXPECT_FALSE(s.local);
+  EXPECT_EQ(s.surveyed.size(), scene.control.points.size() + scene.checks.points.size());
+  // The ENU origin is the mean GPS: within a few metres (GPS noise 2 / 4 m)
+  // of the truth's mean camera position, which is about 60 m above ground.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Image& image : scene.survey.truth.images) mean += image.pose.centre_in_world;
+  mean /= scene.survey.truth.images.size();
+  const LocalFrame truth_frame(SyntheticGeorefOptions{}.origin);
+  const Eigen::Vector3d origin_in_truth = truth_frame.EnuFromGeodetic(s.report.enu_origin);
+  EXPECT_LT((origin_in_truth - mean).head<2>().norm(), 2.0);
+  EXPECT_LT(std::abs(origin_in_truth.z() - mean.z()), 4.0);
+  EXPECT_GT((origin_in_truth - mean).norm(), 1e-4);  // the GPS's, not the truth's
+}
+
+TEST(SurveyPhases, LocalControlRefusesGeodeticGps) {
+  const SyntheticGeoref scene = Scene();
+  SparseModel model = scene.tie_model;
+  GcpFile local = scene.control;
+  local.crs = "LOCAL";
+  const GeoreferenceOptions options;
+  SurveyState s = StartSurvey(&model, scene.gps, &local, nullptr, options);
+  EXPECT_THROW(ChooseFrameAndDatum(&s), InvalidArgument);
+}
+
+TEST(SurveyPhases, InitialSimilarityFromControlRecoversTheScale) {
+  const SyntheticGeoref scene = Scene();
+  SparseModel model = scene.tie_model;
+  for (Image& image : model.images) {
+    image.pose.centre_in_world = Arbitrary().Apply(image.pose.centre_in_world);
+    image.pose.cam_from_world = (image.pose.cam_from_world * Arbitrary().rotation.conjugate()).normalized();
+  }
+  for (Point& point : model.points) point.position = Arbitrary().Apply(point.position);
+  const GeoreferenceOptions options;
+  SurveyState s = StartSurvey(&model, scene.gps, &scene.control, &scene.checks, options);
+  ChooseFrameAndDatum(&s);
+  AttachPriors(&s);
+  FitInitialSimilarity(&s);
+  ASSERT_TRUE(s.control_datum);
+  EXPECT_EQ(s.report.helmert_inliers, 8);
+  EXPECT_EQ(s.report.datum_source.rfind("control points (8 of 8", 0), 0u) << s.report.datum_source;
+  // The block's size is the truth's: control of 1 cm over ~200 m holds the
+  // scale to 1e-4, the triangulated marks (0.3 px, ~2 cm) to a few 1e-4.
+  const Image& first = model.images.front();
+  const Image& last = model.images.back();
+  const double truth = (scene.survey.truth.images.back().pose.centre_in_world -
+                        scene.survey.truth.images.front().pose.centre_in_world)
+                           .norm();
+  const double adjusted = (last.pose.centre_in_world - first.pose.centre_in_world).norm();
+  EXPECT_NEAR(adjusted / truth, 1.0, 2e-3);
+  EXPECT_GT(std::abs(adjusted / truth - 1.0), 1e-7);  // fitted, not copied
+  // The control residuals of the fit are at the noise: centimetres.
+  EXPECT_LT(s.report.helmert_rms_m, 0.1);
+  EXPECT_GT(s.report.helmert_rms_m, 0.001);
+}
+
+}  // namespace
+}  // namespace aerotri
