@@ -78,7 +78,7 @@ endfunction()
 # cases share expensive state in one process (a rendered survey and its
 # workspace); a skip anywhere marks the whole entry skipped.
 function(aerotri_add_test module name)
-  cmake_parse_arguments(ARG "WHOLE" "TIER;TIMEOUT" "SOURCES;DEPS;STATISTICS" ${ARGN})
+  cmake_parse_arguments(ARG "WHOLE" "TIER;TIMEOUT" "SOURCES;DEPS;STATISTICS;INTEGRATION" ${ARGN})
   if(NOT ARG_TIER)
     set(ARG_TIER unit)
   endif()
@@ -105,29 +105,35 @@ function(aerotri_add_test module name)
                          SKIP_REGULAR_EXPRESSION "${skipped}")
     return()
   endif()
-  if(NOT ARG_STATISTICS)
-    gtest_discover_tests(${target}
-      TEST_PREFIX "${module}/${name}."
-      DISCOVERY_MODE PRE_TEST
-      PROPERTIES LABELS ${ARG_TIER} TIMEOUT ${ARG_TIMEOUT}
-                 SKIP_REGULAR_EXPRESSION "${skipped}")
-    return()
-  endif()
   # STATISTICS: gtest patterns (Suite.Case, '*' allowed) of cases whose truth
   # is statistical and takes blocks big enough to judge it (8 s or more
-  # each): labelled `statistics`, the rest of the executable keeps its tier,
-  # so the unit tier stays under two minutes.
-  list(JOIN ARG_STATISTICS ":" patterns)
+  # each): labelled `statistics`. INTEGRATION: cases that run a whole
+  # survey adjustment, command or orthomosaic end to end (4 s or more each):
+  # labelled `integration`. The rest of the executable keeps its tier, so the
+  # unit tier stays under two minutes.
+  set(excluded ${ARG_STATISTICS} ${ARG_INTEGRATION})
+  set(filter "")
+  if(excluded)
+    list(JOIN excluded ":" patterns)
+    set(filter TEST_FILTER "-${patterns}")
+  endif()
   gtest_discover_tests(${target}
     TEST_PREFIX "${module}/${name}."
-    TEST_FILTER "-${patterns}"
+    ${filter}
     DISCOVERY_MODE PRE_TEST
     PROPERTIES LABELS ${ARG_TIER} TIMEOUT ${ARG_TIMEOUT}
                SKIP_REGULAR_EXPRESSION "${skipped}")
-  gtest_discover_tests(${target}
-    TEST_PREFIX "${module}/${name}."
-    TEST_FILTER "${patterns}"
-    DISCOVERY_MODE PRE_TEST
-    PROPERTIES LABELS statistics TIMEOUT ${ARG_TIMEOUT}
-               SKIP_REGULAR_EXPRESSION "${skipped}")
+  foreach(label statistics integration)
+    string(TOUPPER ${label} key)
+    if(NOT ARG_${key})
+      continue()
+    endif()
+    list(JOIN ARG_${key} ":" patterns)
+    gtest_discover_tests(${target}
+      TEST_PREFIX "${module}/${name}."
+      TEST_FILTER "${patterns}"
+      DISCOVERY_MODE PRE_TEST
+      PROPERTIES LABELS ${label} TIMEOUT ${ARG_TIMEOUT}
+                 SKIP_REGULAR_EXPRESSION "${skipped}")
+  endforeach()
 endfunction()

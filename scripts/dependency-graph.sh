@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The library dependency graph, from CMake's own --graphviz output, as a
-# Mermaid block (solid: PUBLIC link, dotted: PRIVATE). The README carries it
-# between the dependency-graph markers; --check README.md fails when the two
+# Mermaid block (solid: PUBLIC link, dotted: PRIVATE). docs/architecture.md carries it
+# between the dependency-graph markers; --check docs/architecture.md fails when the two
 # differ, so the layout and the CMake graph cannot drift apart.
 # Usage: scripts/dependency-graph.sh              print the block
 #        scripts/dependency-graph.sh --check FILE  exit 1 if FILE's block differs
@@ -27,7 +27,7 @@ block() {
   echo '```'
 }
 
-begin='<!-- dependency-graph:begin (scripts/dependency-graph.sh --update README.md) -->'
+begin='<!-- dependency-graph:begin (scripts/dependency-graph.sh --update docs/architecture.md) -->'
 end='<!-- dependency-graph:end -->'
 case "${1:-}" in
   "") block ;;

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 out="${1:-sample_output}"
 sample=sample_surveys/synthetic_meadow
 scripts/install-deps.sh
-scripts/build.sh
+scripts/build.sh --target aerotri  # the programs only; scripts/test.sh builds the rest
 build/tools/aerotri run "$sample/images" \
   --gcp "$sample/gcp_list.txt" --checkpoints "$sample/checkpoints.txt" \
   --output "$out"
