@@ -261,6 +261,109 @@ void RestoreGauge(const BundleConfig& config, const Pose& pose_a, SparseModel* m
 // triangulated here with the cameras held, whose rows are added to the
 // problem for their Jacobian only. A priori (unit weight); AdjustBundle
 // scales it by σ0².
+// Independent check points: triangulated from the adjusted cameras, their
+// rays added to the problem as rows of the precision pass (not solved);
+// the model points so placed.
+std::vector<int> AddIndependentCheckPoints(ceres::Problem* problem, SparseModel* model,
+                                           const std::vector<char>& image_used,
+                                           std::vector<std::array<double, 4>>& rotations,
+                                           const std::function<ceres::LossFunction*(double)>& loss_for,
+                                           double mark_sigma, double mark_scale, internal::PrecisionProblem* pp) {
+  std::vector<int> check_points;
+  std::vector<std::vector<int>> obs_of_point(model->points.size());
+  for (size_t k = 0; k < model->observations.size(); ++k) {
+    const Observation& obs = model->observations[k];
+    if (model->points[obs.point].role == PointRole::kCheck && image_used[obs.image]) {
+      obs_of_point[obs.point].push_back(static_cast<int>(k));
+    }
+  }
+  for (size_t p = 0; p < model->points.size(); ++p) {
+    if (obs_of_point[p].size() < 2) continue;
+    std::vector<View> views;
+    for (int k : obs_of_point[p]) {
+      const Observation& obs = model->observations[k];
+      const Image& image = model->images[obs.image];
+      views.push_back({&model->cameras[image.camera], image.pose, obs.xy});
+    }
+    const auto t = TriangulatePoint(views);
+    if (!t) continue;
+    Point& point = model->points[p];
+    point.position = t->position;
+    internal::PrecisionProblem::Rows rows;
+    rows.position = point.position.data();
+    for (int k : obs_of_point[p]) {
+      const Observation& obs = model->observations[k];
+      Image& image = model->images[obs.image];
+      Camera& camera = model->cameras[image.camera];
+      const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px * mark_scale : mark_sigma;
+      ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
+        return new ReprojectionCost<decltype(m)>(obs.xy, sigma);
+      });
+      rows.ids.push_back(problem->AddResidualBlock(cost, loss_for(sigma), rotations[obs.image].data(),
+                                                   image.pose.centre_in_world.data(), rows.position,
+                                                   camera.params.data()));
+    }
+    pp->checks.push_back(rows);
+    check_points.push_back(static_cast<int>(p));
+  }
+  return check_points;
+}
+
+// θ of Exp(θ) R against Ceres' tangent δ of a quaternion: numerically,
+// whatever the manifold's convention.
+Eigen::Matrix3d ThetaFromTangent(const double* q) {
+  const ceres::QuaternionManifold manifold;
+  const Eigen::Quaterniond q0(q[0], q[1], q[2], q[3]);
+  Eigen::Matrix3d d_theta;
+  const double eps = 1e-6;
+  for (int k = 0; k < 3; ++k) {
+    double delta[3] = {0, 0, 0}, plus[4], minus[4];
+    delta[k] = eps;
+    manifold.Plus(q, delta, plus);
+    delta[k] = -eps;
+    manifold.Plus(q, delta, minus);
+    const Eigen::AngleAxisd a(Eigen::Quaterniond(plus[0], plus[1], plus[2], plus[3]) * q0.conjugate());
+    const Eigen::AngleAxisd b(Eigen::Quaterniond(minus[0], minus[1], minus[2], minus[3]) * q0.conjugate());
+    d_theta.col(k) = (a.angle() * a.axis() - b.angle() * b.axis()) / (2.0 * eps);
+  }
+  return d_theta;
+}
+
+// A drift's covariance on E, N, U: held axes have no tangent, their rows
+// and columns stay zero.
+Eigen::Matrix3d DriftCovariance(const internal::PrecisionSolution& solution, int slot,
+                                const std::array<bool, 3>& drift_axes) {
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  if (slot < 0) return cov;
+  const int o = solution.reduced_offset[slot];
+  std::vector<int> axes;
+  for (int a = 0; a < 3; ++a) {
+    if (drift_axes[a]) axes.push_back(a);
+  }
+  for (size_t r = 0; r < axes.size(); ++r) {
+    for (size_t c = 0; c < axes.size(); ++c) cov(axes[r], axes[c]) = solution.reduced_cov(o + r, o + c);
+  }
+  return cov;
+}
+
+// Baarda's w-test of each mark from its cofactor.
+std::vector<MarkTest> MarkTests(const internal::PrecisionSolution& solution, const SparseModel& model,
+                                const std::vector<int>& mark_observation, const std::vector<double>& mark_sigma_of) {
+  std::vector<MarkTest> tests;
+  for (size_t m = 0; m < solution.marks.size(); ++m) {
+    const internal::MarkCofactor& c = solution.marks[m];
+    MarkTest t;
+    t.observation = mark_observation[m];
+    t.point = model.observations[t.observation].point;
+    t.image = model.observations[t.observation].image;
+    t.residual_px = c.residual * mark_sigma_of[m];
+    t.redundancy = c.qvv;
+    for (int a = 0; a < 2; ++a) t.w[a] = c.qvv[a] > 1e-6 ? c.residual[a] / std::sqrt(c.qvv[a]) : 0.0;
+    tests.push_back(t);
+  }
+  return tests;
+}
+
 BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, const std::vector<char>& image_used,
                                    const std::vector<char>& point_used,
                                    std::vector<std::array<double, 4>>& rotations,
@@ -320,45 +423,10 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
   }
 
   // Independent check points: triangulated from the adjusted cameras.
-  std::vector<int> check_points;
-  if (!options.check_points_in_bundle) {
-    std::vector<std::vector<int>> obs_of_point(model->points.size());
-    for (size_t k = 0; k < model->observations.size(); ++k) {
-      const Observation& obs = model->observations[k];
-      if (model->points[obs.point].role == PointRole::kCheck && image_used[obs.image]) {
-        obs_of_point[obs.point].push_back(static_cast<int>(k));
-      }
-    }
-    for (size_t p = 0; p < model->points.size(); ++p) {
-      if (obs_of_point[p].size() < 2) continue;
-      std::vector<View> views;
-      for (int k : obs_of_point[p]) {
-        const Observation& obs = model->observations[k];
-        const Image& image = model->images[obs.image];
-        views.push_back({&model->cameras[image.camera], image.pose, obs.xy});
-      }
-      const auto t = TriangulatePoint(views);
-      if (!t) continue;
-      Point& point = model->points[p];
-      point.position = t->position;
-      internal::PrecisionProblem::Rows rows;
-      rows.position = point.position.data();
-      for (int k : obs_of_point[p]) {
-        const Observation& obs = model->observations[k];
-        Image& image = model->images[obs.image];
-        Camera& camera = model->cameras[image.camera];
-        const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px * mark_scale : mark_sigma;
-        ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
-          return new ReprojectionCost<decltype(m)>(obs.xy, sigma);
-        });
-        rows.ids.push_back(problem->AddResidualBlock(cost, loss_for(sigma), rotations[obs.image].data(),
-                                                     image.pose.centre_in_world.data(), rows.position,
-                                                     camera.params.data()));
-      }
-      pp.checks.push_back(rows);
-      check_points.push_back(static_cast<int>(p));
-    }
-  }
+  const std::vector<int> check_points =
+      options.check_points_in_bundle
+          ? std::vector<int>()
+          : AddIndependentCheckPoints(problem, model, image_used, rotations, loss_for, mark_sigma, mark_scale, &pp);
 
   pp.groups.assign(groups.begin(), groups.end());
   const internal::PrecisionSolution solution = internal::SolvePrecision(pp);
@@ -370,29 +438,13 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     const int o = solution.reduced_offset[slot];
     return solution.reduced_cov.block<3, 3>(o, o);
   };
-  const ceres::QuaternionManifold manifold;
   for (size_t i = 0; i < num_images; ++i) {
     if (!image_used[i]) continue;
     ImagePrecision ip;
     ip.image = static_cast<int>(i);
     if (centre_slot[i] >= 0) ip.centre_cov = block(centre_slot[i]);
     if (rotation_slot[i] >= 0) {
-      // θ of Exp(θ) R against Ceres' tangent δ: numerically, whatever the
-      // manifold's convention.
-      const double* q = rotations[i].data();
-      const Eigen::Quaterniond q0(q[0], q[1], q[2], q[3]);
-      Eigen::Matrix3d d_theta;
-      const double eps = 1e-6;
-      for (int k = 0; k < 3; ++k) {
-        double delta[3] = {0, 0, 0}, plus[4], minus[4];
-        delta[k] = eps;
-        manifold.Plus(q, delta, plus);
-        delta[k] = -eps;
-        manifold.Plus(q, delta, minus);
-        const Eigen::AngleAxisd a(Eigen::Quaterniond(plus[0], plus[1], plus[2], plus[3]) * q0.conjugate());
-        const Eigen::AngleAxisd b(Eigen::Quaterniond(minus[0], minus[1], minus[2], minus[3]) * q0.conjugate());
-        d_theta.col(k) = (a.angle() * a.axis() - b.angle() * b.axis()) / (2.0 * eps);
-      }
+      const Eigen::Matrix3d d_theta = ThetaFromTangent(rotations[i].data());
       ip.rotation_cov = d_theta * block(rotation_slot[i]) * d_theta.transpose();
     }
     out.images.push_back(ip);
@@ -413,32 +465,8 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
       out.gps_flight_offset_cov.push_back(slot >= 0 ? Eigen::Matrix3d(block(slot)) : Eigen::Matrix3d::Zero());
     }
   }
-  for (int slot : drift_slot) {
-    // Held axes have no tangent: their rows and columns stay zero.
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    if (slot >= 0) {
-      const int o = solution.reduced_offset[slot];
-      std::vector<int> axes;
-      for (int a = 0; a < 3; ++a) {
-        if (options.gps_drift_axes[a]) axes.push_back(a);
-      }
-      for (size_t r = 0; r < axes.size(); ++r) {
-        for (size_t c = 0; c < axes.size(); ++c) cov(axes[r], axes[c]) = solution.reduced_cov(o + r, o + c);
-      }
-    }
-    out.gps_drift_cov.push_back(cov);
-  }
-  for (size_t m = 0; m < solution.marks.size(); ++m) {
-    const internal::MarkCofactor& c = solution.marks[m];
-    MarkTest t;
-    t.observation = mark_observation[m];
-    t.point = model->observations[t.observation].point;
-    t.image = model->observations[t.observation].image;
-    t.residual_px = c.residual * mark_sigma_of[m];
-    t.redundancy = c.qvv;
-    for (int a = 0; a < 2; ++a) t.w[a] = c.qvv[a] > 1e-6 ? c.residual[a] / std::sqrt(c.qvv[a]) : 0.0;
-    out.marks.push_back(t);
-  }
+  for (int slot : drift_slot) out.gps_drift_cov.push_back(DriftCovariance(solution, slot, options.gps_drift_axes));
+  out.marks = MarkTests(solution, *model, mark_observation, mark_sigma_of);
   for (size_t g = 0; g < solution.groups.size() && g < group_out->size(); ++g) (*group_out)[g] = solution.groups[g];
   out.computed = true;
   out.time_s = SecondsSince(start);
@@ -1262,6 +1290,245 @@ std::vector<double> ReprojectionErrors(const SparseModel& model) {
   return errors;
 }
 
+namespace {
+
+// One AdjustBundle's state between its solves: the model, the GNSS
+// parameters carried from solve to solve, and the summary being filled.
+struct BundleRun {
+  SparseModel* model;
+  const BundleOptions& options;
+  BundleSummary summary;
+  std::vector<Eigen::Vector3d> gps_offsets;  // one, or one per flight
+  std::vector<Eigen::Vector3d> gps_drift;    // per flight, when estimated
+  int solve = 0;                             // the solves so far
+};
+
+// The GNSS parameters' start: one offset, or one per flight (at least one
+// either way), and the drift per flight.
+void StartGnssParameters(BundleRun* run) {
+  const BundleOptions& options = run->options;
+  int flights = 0;
+  for (const Image& image : run->model->images) {
+    if (image.gps_prior) flights = std::max(flights, image.gps_prior->flight + 1);
+  }
+  run->gps_offsets.assign(options.gps_offset_per_flight ? std::max(flights, 1) : 1, options.initial_gps_offset_m);
+  if (options.gps_offset_per_flight) {
+    for (size_t f = 0; f < run->gps_offsets.size() && f < options.initial_gps_flight_offsets_m.size(); ++f) {
+      run->gps_offsets[f] = options.initial_gps_flight_offsets_m[f];
+    }
+  }
+  if (options.estimate_gps_drift) {
+    run->gps_drift.assign(flights, Eigen::Vector3d::Zero());
+    for (int f = 0; f < flights && f < static_cast<int>(options.initial_gps_drift_m_per_s.size()); ++f) {
+      run->gps_drift[f] = options.initial_gps_drift_m_per_s[f];
+    }
+  }
+}
+
+int IterationsOf(const RoundResult& result) { return std::max(static_cast<int>(result.ceres.iterations.size()) - 1, 0); }
+
+// A solve's figures into the summary (its counts, σ0, cost and times).
+void Absorb(BundleRun* run, const RoundResult& result, int round, const std::string& kind) {
+  BundleSummary& summary = run->summary;
+  const BundleOptions& options = run->options;
+  summary.gps_offset_estimated = result.offset_estimated;
+  summary.gps_drift_estimated = result.drift_estimated;
+  summary.gps_drift_m_per_s = run->gps_drift;
+  summary.num_attitude_priors = result.num_attitude;
+  summary.redundancy = result.ceres.num_residuals_reduced - result.ceres.num_effective_parameters_reduced;
+  summary.sigma0 = summary.redundancy > 0 ? std::sqrt(2.0 * result.ceres.final_cost / summary.redundancy) : 0.0;
+  summary.intrinsics_precision = result.precision;
+  summary.covariance_note = result.covariance_note;
+  summary.gps_offset_m = run->gps_offsets[0];
+  if (options.gps_offset_per_flight) summary.gps_flight_offsets_m = run->gps_offsets;
+  if (round == 0) {
+    summary.initial_cost = result.ceres.initial_cost;
+    summary.gauge = result.gauge;
+    summary.linear_solver = result.solver;
+  }
+  summary.final_cost = result.ceres.final_cost;
+  summary.iterations += IterationsOf(result);
+  summary.termination = std::string(ceres::TerminationTypeToString(
+                            result.ceres.termination_type)) +
+                        ": " + result.ceres.message;
+  summary.solves.push_back({kind, IterationsOf(result), result.ceres.initial_cost, result.ceres.final_cost,
+                            result.ceres.total_time_in_seconds, summary.termination});
+  summary.converged = result.ceres.termination_type == ceres::CONVERGENCE;
+  summary.setup_time_s += result.setup_s;
+  summary.solve_time_s += result.ceres.total_time_in_seconds;
+  if (options.keep_solver_report) summary.solver_report += result.report.empty() ? result.ceres.FullReport() : result.report;
+  summary.num_images = result.num_images;
+  summary.num_points = result.num_points;
+  summary.num_observations = result.num_observations;
+  summary.num_gps_priors = result.num_gps;
+  summary.num_gcp_priors = result.num_gcp;
+  summary.num_skipped_points = result.skipped_points;
+  summary.num_camera_groups = 0;
+}
+
+// One solve of the block, absorbed into the summary under `kind`.
+RoundResult Solve(BundleRun* run, const BundleOptions& options, const std::string& kind,
+                  bool precision_pass = false) {
+  const int round = run->solve++;
+  RoundResult result = SolveOnce(run->model, options, round, &run->gps_offsets, &run->gps_drift, precision_pass);
+  if (!precision_pass) Absorb(run, result, round, kind);
+  return result;
+}
+
+// Rejects tie-point observations beyond the threshold; how many. A target
+// mark is never dropped silently (the w-test of the precision pass names a
+// bad one).
+int RejectOutliers(BundleRun* run) {
+  SparseModel* model = run->model;
+  const std::vector<double> errors = ReprojectionErrors(*model);
+  std::vector<Observation> kept;
+  kept.reserve(model->observations.size());
+  int removed = 0;
+  for (size_t i = 0; i < errors.size(); ++i) {
+    const Observation& obs = model->observations[i];
+    const bool adjusted = model->images[obs.image].registered && model->points[obs.point].role == PointRole::kTie;
+    if (adjusted && !(errors[i] <= run->options.outlier_threshold_px)) {
+      ++removed;
+    } else {
+      kept.push_back(obs);
+    }
+  }
+  if (removed > 0) model->observations.swap(kept);
+  run->summary.outliers_removed += removed;
+  return removed;
+}
+
+// Screening (robust, to find the blunders) then least squares, or the
+// robust loss throughout; after the estimate, rejection and a re-solve while
+// observations go beyond the threshold (max_outlier_rounds times). Returns
+// the estimator's options.
+BundleOptions SolveWithOutlierRounds(BundleRun* run) {
+  const BundleOptions& options = run->options;
+  const int max_rounds = options.outlier_threshold_px > 0.0 ? options.max_outlier_rounds : 0;
+  const bool screening = options.least_squares_after_screening && options.loss != LossType::kNone && max_rounds > 0;
+  BundleOptions screen = options;
+  screen.function_tolerance = std::max(options.function_tolerance, options.screening_function_tolerance);
+  BundleOptions least_squares = options;
+  least_squares.loss = LossType::kNone;
+  const BundleOptions& estimate = screening ? least_squares : options;
+  if (screening) {
+    Solve(run, screen, std::string("robust screening (") + ToString(options.loss) + ")");
+    if (RejectOutliers(run) > 0) run->summary.outlier_rounds = 1;
+  }
+  for (int round = 0;; ++round) {
+    Solve(run, estimate,
+          round > 0   ? "outlier round " + std::to_string(round)
+          : screening ? std::string("least squares")
+                      : std::string("first"));
+    if (round >= max_rounds || RejectOutliers(run) == 0) break;
+    ++run->summary.outlier_rounds;
+  }
+  return estimate;
+}
+
+// Each observation group's variance component from a precision pass;
+// *settled: every estimated group within its tolerance of 1, else *next
+// holds the rescaled sigmas.
+void VarianceComponentsOf(const BundleRun& run, const RoundResult& pass, const BundleOptions& weighted,
+                          const std::array<double, kNumObservationGroups>& stated, int iteration,
+                          std::array<bool, kNumObservationGroups>* estimable,
+                          std::vector<VarianceComponent>* components,
+                          std::array<double, kNumObservationGroups>* next, bool* settled) {
+  const BundleOptions& options = run.options;
+  components->clear();
+  *settled = true;
+  *next = weighted.sigma_scale;
+  for (int g = 0; g < kNumObservationGroups; ++g) {
+    const internal::GroupRedundancy& gr = pass.groups[g];
+    if (gr.rows == 0) continue;
+    VarianceComponent vc;
+    vc.group = static_cast<ObservationGroup>(g);
+    vc.rows = gr.rows;
+    vc.redundancy = gr.rows - gr.leverage;
+    vc.sigma0 = vc.redundancy > 0.5 ? std::sqrt(gr.sum_squares / vc.redundancy)
+                                    : std::numeric_limits<double>::quiet_NaN();
+    if (iteration == 0) (*estimable)[g] = vc.redundancy >= BundleOptions::kMinGroupRedundancy;
+    vc.scale = weighted.sigma_scale[g];
+    vc.stated_sigma = stated[g];
+    vc.estimated = options.estimate_variance_components && (*estimable)[g];
+    components->push_back(vc);
+    // Settled within the tolerance or one standard error of the group's σ0
+    // (1 / sqrt(2 r_g)), whichever is larger.
+    const double tolerance =
+        std::max(options.variance_component_tolerance, 1.0 / std::sqrt(2.0 * std::max(vc.redundancy, 1.0)));
+    if ((*estimable)[g] && std::isfinite(vc.sigma0) && vc.sigma0 > 0.0 && std::abs(vc.sigma0 - 1.0) > tolerance) {
+      *settled = false;
+      (*next)[g] *= std::clamp(vc.sigma0, 0.1, 10.0);
+    }
+  }
+}
+
+// The precision pass; with variance-component estimation, each group's
+// factor rescales its sigmas and the block is solved again (Förstner's
+// iteration), the last pass at the weights it settled on. Which groups are
+// estimated is decided at the stated weights: a group with too little
+// redundancy of its own to judge (a handful of control points that hold the
+// datum) keeps its stated sigmas throughout.
+void PrecisionWithVarianceComponents(BundleRun* run, const BundleOptions& estimate) {
+  const BundleOptions& options = run->options;
+  BundleSummary& summary = run->summary;
+  summary.sigma0_stated = summary.sigma0;
+  summary.redundancy_stated = summary.redundancy;
+  BundleOptions weighted = estimate;
+  const std::array<double, kNumObservationGroups> stated = StatedSigmas(*run->model, options);
+  RoundResult pass;
+  std::array<bool, kNumObservationGroups> estimable{};
+  for (int iteration = 0;; ++iteration) {
+    pass = Solve(run, weighted, "", /*precision_pass=*/true);
+    std::array<double, kNumObservationGroups> next;
+    bool settled = true;
+    VarianceComponentsOf(*run, pass, weighted, stated, iteration, &estimable, &summary.variance_components, &next,
+                         &settled);
+    if (!options.estimate_variance_components || !pass.posterior.computed || settled ||
+        iteration >= options.max_variance_component_iterations) {
+      break;
+    }
+    weighted.sigma_scale = next;
+    Solve(run, weighted, "variance components " + std::to_string(iteration + 1));
+    summary.variance_component_iterations = iteration + 1;
+  }
+  summary.precision = std::move(pass.posterior);
+  BundlePrecision& p = summary.precision;
+  if (!p.computed) return;
+  p.variance_factor = summary.sigma0 > 0.0 ? summary.sigma0 * summary.sigma0 : 1.0;
+  for (ImagePrecision& ip : p.images) {
+    ip.centre_cov *= p.variance_factor;
+    ip.rotation_cov *= p.variance_factor;
+  }
+  for (PointPrecision& pt : p.points) pt.cov *= p.variance_factor;
+  p.gps_offset_cov *= p.variance_factor;
+  for (Eigen::Matrix3d& c : p.gps_flight_offset_cov) c *= p.variance_factor;
+  for (Eigen::Matrix3d& c : p.gps_drift_cov) c *= p.variance_factor;
+}
+
+// Weak images (few observations) and tie points seen under small angles.
+void Diagnostics(const SparseModel& model, const BundleOptions& options, BundleSummary* summary) {
+  summary->num_behind_camera_final = CountBehindCamera(model);
+  const std::vector<int> per_image = model.ObservationsPerImage();
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    if (model.images[i].registered && per_image[i] < options.weak_image_min_observations) {
+      summary->weak_images.push_back({model.images[i].name, per_image[i]});
+    }
+  }
+  std::vector<std::vector<int>> obs_of_point(model.points.size());
+  for (size_t o = 0; o < model.observations.size(); ++o) {
+    obs_of_point[model.observations[o].point].push_back(static_cast<int>(o));
+  }
+  for (size_t p = 0; p < model.points.size(); ++p) {
+    if (model.points[p].role != PointRole::kTie || obs_of_point[p].size() < 2) continue;
+    if (MaxRayAngleDeg(model, obs_of_point[p]) < options.weak_point_min_angle_deg) {
+      ++summary->weak_points_small_angle;
+    }
+  }
+}
+
+}  // namespace
+
 BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   AEROTRI_CHECK(model != nullptr);
   const auto start = Clock::now();
@@ -1269,7 +1536,8 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   if (!options.Validate(&error)) throw InvalidArgument("bundle adjustment: " + error);
   model->Validate();
 
-  BundleSummary summary;
+  BundleRun run{model, options, BundleSummary(), {}, {}, 0};
+  BundleSummary& summary = run.summary;
   if (options.compute_diagnostics) summary.num_behind_camera_initial = CountBehindCamera(*model);
   summary.initial_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
   summary.refined_intrinsics = ToString(options.refine_intrinsics);
@@ -1279,213 +1547,17 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
       summary.refined_intrinsics += (summary.refined_intrinsics.empty() ? "" : ",") + p;
     }
   }
+  StartGnssParameters(&run);
+  const BundleOptions estimate = SolveWithOutlierRounds(&run);
+  if (options.compute_precision) PrecisionWithVarianceComponents(&run, estimate);
 
-  const int max_rounds = options.outlier_threshold_px > 0.0 ? options.max_outlier_rounds : 0;
-  int flights = 0;
+  std::vector<char> used(model->cameras.size(), 0);
   for (const Image& image : model->images) {
-    if (image.gps_prior) flights = std::max(flights, image.gps_prior->flight + 1);
+    if (image.registered) used[image.camera] = 1;
   }
-  // One offset, or one per flight (at least one either way).
-  std::vector<Eigen::Vector3d> gps_offsets(options.gps_offset_per_flight ? std::max(flights, 1) : 1,
-                                           options.initial_gps_offset_m);
-  if (options.gps_offset_per_flight) {
-    for (size_t f = 0; f < gps_offsets.size() && f < options.initial_gps_flight_offsets_m.size(); ++f) {
-      gps_offsets[f] = options.initial_gps_flight_offsets_m[f];
-    }
-  }
-  std::vector<Eigen::Vector3d> gps_drift;
-  if (options.estimate_gps_drift) {
-    gps_drift.assign(flights, Eigen::Vector3d::Zero());
-    for (int f = 0; f < flights && f < static_cast<int>(options.initial_gps_drift_m_per_s.size()); ++f) {
-      gps_drift[f] = options.initial_gps_drift_m_per_s[f];
-    }
-  }
-  // A solve's figures into the summary (its counts, σ0, cost and times).
-  auto iterations_of = [](const RoundResult& result) {
-    return std::max(static_cast<int>(result.ceres.iterations.size()) - 1, 0);
-  };
-  auto absorb = [&](const RoundResult& result, int round, const std::string& kind) {
-    summary.gps_offset_estimated = result.offset_estimated;
-    summary.gps_drift_estimated = result.drift_estimated;
-    summary.gps_drift_m_per_s = gps_drift;
-    summary.num_attitude_priors = result.num_attitude;
-    summary.redundancy = result.ceres.num_residuals_reduced - result.ceres.num_effective_parameters_reduced;
-    summary.sigma0 = summary.redundancy > 0 ? std::sqrt(2.0 * result.ceres.final_cost / summary.redundancy) : 0.0;
-    summary.intrinsics_precision = result.precision;
-    summary.covariance_note = result.covariance_note;
-    summary.gps_offset_m = gps_offsets[0];
-    if (options.gps_offset_per_flight) summary.gps_flight_offsets_m = gps_offsets;
-    if (round == 0) {
-      summary.initial_cost = result.ceres.initial_cost;
-      summary.gauge = result.gauge;
-      summary.linear_solver = result.solver;
-    }
-    summary.final_cost = result.ceres.final_cost;
-    summary.iterations += iterations_of(result);
-    summary.termination = std::string(ceres::TerminationTypeToString(
-                              result.ceres.termination_type)) +
-                          ": " + result.ceres.message;
-    summary.solves.push_back({kind, iterations_of(result), result.ceres.initial_cost, result.ceres.final_cost,
-                              result.ceres.total_time_in_seconds, summary.termination});
-    summary.converged = result.ceres.termination_type == ceres::CONVERGENCE;
-    summary.setup_time_s += result.setup_s;
-    summary.solve_time_s += result.ceres.total_time_in_seconds;
-    if (options.keep_solver_report) summary.solver_report += result.report.empty() ? result.ceres.FullReport() : result.report;
-    summary.num_images = result.num_images;
-    summary.num_points = result.num_points;
-    summary.num_observations = result.num_observations;
-    summary.num_gps_priors = result.num_gps;
-    summary.num_gcp_priors = result.num_gcp;
-    summary.num_skipped_points = result.skipped_points;
-    summary.num_camera_groups = 0;
-  };
-  // Screening (robust, to find the blunders) then least squares, or the
-  // robust loss throughout.
-  const bool screening =
-      options.least_squares_after_screening && options.loss != LossType::kNone && max_rounds > 0;
-  BundleOptions screen = options;
-  screen.function_tolerance = std::max(options.function_tolerance, options.screening_function_tolerance);
-  BundleOptions least_squares = options;
-  least_squares.loss = LossType::kNone;
-  const BundleOptions& estimate = screening ? least_squares : options;
-  // Rejects tie-point observations beyond the threshold; how many.
-  auto reject = [&]() {
-    const std::vector<double> errors = ReprojectionErrors(*model);
-    std::vector<Observation> kept;
-    kept.reserve(model->observations.size());
-    int removed = 0;
-    for (size_t i = 0; i < errors.size(); ++i) {
-      const Observation& obs = model->observations[i];
-      // Tie points only: a target mark is never dropped silently (the
-      // w-test of the precision pass names a bad one).
-      const bool adjusted = model->images[obs.image].registered &&
-                            model->points[obs.point].role == PointRole::kTie;
-      if (adjusted && !(errors[i] <= options.outlier_threshold_px)) {
-        ++removed;
-      } else {
-        kept.push_back(obs);
-      }
-    }
-    if (removed > 0) model->observations.swap(kept);
-    summary.outliers_removed += removed;
-    return removed;
-  };
-  int solve = 0;  // the solves so far
-  if (screening) {
-    absorb(SolveOnce(model, screen, solve, &gps_offsets, &gps_drift), solve,
-           std::string("robust screening (") + ToString(options.loss) + ")");
-    ++solve;
-    if (reject() > 0) summary.outlier_rounds = 1;
-  }
-  // The estimate; after it, rejection and a re-solve while observations
-  // go beyond the threshold (max_rounds times).
-  for (int round = 0;; ++round) {
-    absorb(SolveOnce(model, estimate, solve, &gps_offsets, &gps_drift), solve,
-           round > 0    ? "outlier round " + std::to_string(round)
-           : screening  ? std::string("least squares")
-                        : std::string("first"));
-    ++solve;
-    if (round >= max_rounds || reject() == 0) break;
-    ++summary.outlier_rounds;
-  }
-
-  if (options.compute_precision) {
-    summary.sigma0_stated = summary.sigma0;
-    summary.redundancy_stated = summary.redundancy;
-    // The precision pass; with variance-component estimation, each group's
-    // factor rescales its sigmas and the block is solved again (Förstner's
-    // iteration), the last pass at the weights it settled on.
-    BundleOptions weighted = estimate;
-    int round = solve;
-    const std::array<double, kNumObservationGroups> stated = StatedSigmas(*model, options);
-    RoundResult pass;
-    // Which groups are estimated is decided at the stated weights: a group
-    // with too little redundancy of its own to judge (a handful of control
-    // points that hold the datum) keeps its stated sigmas throughout.
-    std::array<bool, kNumObservationGroups> estimable{};
-    for (int iteration = 0;; ++iteration) {
-      pass = SolveOnce(model, weighted, round++, &gps_offsets, &gps_drift, /*precision_pass=*/true);
-      summary.variance_components.clear();
-      bool settled = true;
-      std::array<double, kNumObservationGroups> next = weighted.sigma_scale;
-      for (int g = 0; g < kNumObservationGroups; ++g) {
-        const internal::GroupRedundancy& gr = pass.groups[g];
-        if (gr.rows == 0) continue;
-        VarianceComponent vc;
-        vc.group = static_cast<ObservationGroup>(g);
-        vc.rows = gr.rows;
-        vc.redundancy = gr.rows - gr.leverage;
-        vc.sigma0 = vc.redundancy > 0.5 ? std::sqrt(gr.sum_squares / vc.redundancy)
-                                        : std::numeric_limits<double>::quiet_NaN();
-        if (iteration == 0) estimable[g] = vc.redundancy >= BundleOptions::kMinGroupRedundancy;
-        vc.scale = weighted.sigma_scale[g];
-        vc.stated_sigma = stated[g];
-        vc.estimated = options.estimate_variance_components && estimable[g];
-        summary.variance_components.push_back(vc);
-        // Settled within the tolerance or one standard error of the
-        // group's σ0 (1 / sqrt(2 r_g)), whichever is larger.
-        const double tolerance =
-            std::max(options.variance_component_tolerance, 1.0 / std::sqrt(2.0 * std::max(vc.redundancy, 1.0)));
-        if (estimable[g] && std::isfinite(vc.sigma0) && vc.sigma0 > 0.0 && std::abs(vc.sigma0 - 1.0) > tolerance) {
-          settled = false;
-          next[g] *= std::clamp(vc.sigma0, 0.1, 10.0);
-        }
-      }
-      if (!options.estimate_variance_components || !pass.posterior.computed || settled ||
-          iteration >= options.max_variance_component_iterations) {
-        break;
-      }
-      weighted.sigma_scale = next;
-      const int this_round = round++;
-      absorb(SolveOnce(model, weighted, this_round, &gps_offsets, &gps_drift), this_round,
-             "variance components " + std::to_string(iteration + 1));
-      summary.variance_component_iterations = iteration + 1;
-    }
-    summary.precision = std::move(pass.posterior);
-    BundlePrecision& p = summary.precision;
-    if (p.computed) {
-      p.variance_factor = summary.sigma0 > 0.0 ? summary.sigma0 * summary.sigma0 : 1.0;
-      for (ImagePrecision& ip : p.images) {
-        ip.centre_cov *= p.variance_factor;
-        ip.rotation_cov *= p.variance_factor;
-      }
-      for (PointPrecision& pt : p.points) pt.cov *= p.variance_factor;
-      p.gps_offset_cov *= p.variance_factor;
-      for (Eigen::Matrix3d& c : p.gps_flight_offset_cov) c *= p.variance_factor;
-      for (Eigen::Matrix3d& c : p.gps_drift_cov) c *= p.variance_factor;
-    }
-  }
-
-  // Diagnostics.
-  {
-    std::vector<char> used(model->cameras.size(), 0);
-    for (const Image& image : model->images) {
-      if (image.registered) used[image.camera] = 1;
-    }
-    summary.num_camera_groups = static_cast<int>(std::count(used.begin(), used.end(), 1));
-  }
+  summary.num_camera_groups = static_cast<int>(std::count(used.begin(), used.end(), 1));
   summary.final_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
-  if (!options.compute_diagnostics) {
-    summary.total_time_s = SecondsSince(start);
-    return summary;
-  }
-  summary.num_behind_camera_final = CountBehindCamera(*model);
-  const std::vector<int> per_image = model->ObservationsPerImage();
-  for (size_t i = 0; i < model->images.size(); ++i) {
-    if (model->images[i].registered && per_image[i] < options.weak_image_min_observations) {
-      summary.weak_images.push_back({model->images[i].name, per_image[i]});
-    }
-  }
-  std::vector<std::vector<int>> obs_of_point(model->points.size());
-  for (size_t o = 0; o < model->observations.size(); ++o) {
-    obs_of_point[model->observations[o].point].push_back(static_cast<int>(o));
-  }
-  for (size_t p = 0; p < model->points.size(); ++p) {
-    if (model->points[p].role != PointRole::kTie || obs_of_point[p].size() < 2) continue;
-    if (MaxRayAngleDeg(*model, obs_of_point[p]) < options.weak_point_min_angle_deg) {
-      ++summary.weak_points_small_angle;
-    }
-  }
+  if (options.compute_diagnostics) Diagnostics(*model, options, &summary);
   summary.total_time_s = SecondsSince(start);
   return summary;
 }

@@ -123,52 +123,33 @@ bool InverseByCholesky(const Eigen::MatrixXd& s, int threads, Eigen::MatrixXd* i
 
 }  // namespace
 
-PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
-  PrecisionSolution out;
-  ceres::Problem& problem = *p.problem;
-  const int np = static_cast<int>(p.points.size());
-  const int n3 = 3 * np;
-  int nc = 0;
-  for (double* block : p.reduced) {
-    out.reduced_offset.push_back(nc);
-    nc += problem.ParameterBlockTangentSize(block);
-  }
-  std::vector<double*> blocks = p.points;
-  blocks.insert(blocks.end(), p.reduced.begin(), p.reduced.end());
+namespace {
 
-  ceres::Problem::EvaluateOptions eval;
-  eval.parameter_blocks = blocks;
-  eval.residual_blocks = p.adjusted;
-  eval.apply_loss_function = true;
-  eval.num_threads = std::max(1, p.num_threads);
-  ceres::CRSMatrix crs_main, crs;  // the adjusted rows' Jacobian (viewed by j), then others'
-  std::vector<double> adjusted_residuals;
-  if (!problem.Evaluate(eval, nullptr, p.groups.empty() ? nullptr : &adjusted_residuals, nullptr, &crs_main)) {
-    out.note = "the Jacobian could not be evaluated at the solution";
-    return out;
-  }
-  const RowView j = View(crs_main);
-  out.num_rows = static_cast<int>(j.rows());
-  out.num_params = n3 + nc;
-  // S = Jrᵀ Jr − Σ_p W_pᵀ V_p⁻¹ W_p. V_p and W_p are accumulated from the
-  // rows of J that hold point p (a residual holds at most one point), never
-  // as sparse products over all points: Eigen's pruned sparse product costs
-  // a pass over every point column per column (hours at 100,000 points).
-  Eigen::MatrixXd s = Eigen::MatrixXd::Zero(nc, nc);
-  {
-    // Jrᵀ Jr row by row (a row holds at most a camera's, its intrinsics'
-    // and a prior's few columns): no column-major copy of J.
-    std::vector<std::pair<int, double>> reduced;
-    for (int r = 0; r < j.rows(); ++r) {
-      reduced.clear();
-      for (RowView::InnerIterator it(j, r); it; ++it) {
-        if (it.col() >= n3) reduced.emplace_back(it.col() - n3, it.value());
-      }
-      for (const auto& [a, va] : reduced) {
-        for (const auto& [b, vb] : reduced) s(a, b) += va * vb;
-      }
+// Jrᵀ Jr of the reduced columns (from n3 on), row by row (a row holds at
+// most a camera's, its intrinsics' and a prior's few columns): no
+// column-major copy of J.
+void AddReducedProduct(const RowView& j, int n3, Eigen::MatrixXd* s_out) {
+  Eigen::MatrixXd& s = *s_out;
+  // Jrᵀ Jr row by row (a row holds at most a camera's, its intrinsics'
+  // and a prior's few columns): no column-major copy of J.
+  std::vector<std::pair<int, double>> reduced;
+  for (int r = 0; r < j.rows(); ++r) {
+    reduced.clear();
+    for (RowView::InnerIterator it(j, r); it; ++it) {
+      if (it.col() >= n3) reduced.emplace_back(it.col() - n3, it.value());
+    }
+    for (const auto& [a, va] : reduced) {
+      for (const auto& [b, vb] : reduced) s(a, b) += va * vb;
     }
   }
+}
+
+// Each point eliminated: V_p and W_p from the rows of J that hold it,
+// V_p⁻¹ (a pseudo-inverse where its rays are nearly parallel) and
+// T_p = V_p⁻¹ W_p kept, S -= W_pᵀ T_p.
+std::vector<PointCoupling> EliminatePoints(const RowView& j, int np, int n3, Eigen::MatrixXd* s_out,
+                                           int* undetermined_points) {
+  Eigen::MatrixXd& s = *s_out;
   std::vector<std::vector<int>> rows_of_point(np);
   for (int r = 0; r < j.rows(); ++r) {
     for (RowView::InnerIterator it(j, r); it; ++it) {
@@ -178,7 +159,6 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
       }
     }
   }
-
   std::vector<PointCoupling> coupling(np);
   for (int pt = 0; pt < np; ++pt) {
     Eigen::MatrixXd a, b;
@@ -199,7 +179,7 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
       for (int k = 0; k < 3; ++k) inv(k) = values(k) > floor ? 1.0 / values(k) : 0.0;
       c.v_inv = eigen.eigenvectors() * inv.asDiagonal() * eigen.eigenvectors().transpose();
       c.undetermined = true;
-      ++out.undetermined_points;
+      ++*undetermined_points;
     } else {
       c.v_inv = lu.inverse();
     }
@@ -210,6 +190,185 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
       for (size_t y = 0; y < c.cols.size(); ++y) s(c.cols[x], c.cols[y]) -= update(x, y);
     }
   }
+  return coupling;
+}
+
+// Each group's residuals and leverages, from the rows of J.
+void GroupRedundancies(const PrecisionProblem& p, const RowView& j, int n3, const std::vector<PointCoupling>& coupling,
+                       const std::vector<double>& adjusted_residuals, PrecisionSolution* solution) {
+  ceres::Problem& problem = *p.problem;
+  PrecisionSolution& out = *solution;
+  std::unordered_map<ceres::ResidualBlockId, int> first_row;
+  first_row.reserve(p.adjusted.size());
+  int row = 0;
+  for (ceres::ResidualBlockId id : p.adjusted) {
+    first_row.emplace(id, row);
+    row += problem.GetCostFunctionForResidualBlock(id)->num_residuals();
+  }
+  for (const PrecisionProblem::Group& group : p.groups) {
+    GroupRedundancy g;
+    for (const auto& [id, mask] : group.rows) {
+      const auto it = first_row.find(id);
+      if (it == first_row.end()) continue;
+      const int r0 = it->second;
+      const int nr = problem.GetCostFunctionForResidualBlock(id)->num_residuals();
+      // The point the rows hold, if any (a residual holds at most one).
+      int pt = -1;
+      for (int r = r0; r < r0 + nr && pt < 0; ++r) {
+        for (RowView::InnerIterator c(j, r); c; ++c) {
+          if (c.col() < n3) {
+            pt = c.col() / 3;
+            break;
+          }
+        }
+      }
+      Eigen::MatrixXd a, b;
+      std::vector<int> cols;
+      SplitRows(j, r0, r0 + nr, pt >= 0 ? 3 * pt : -3, n3, &a, &cols, &b);
+      // J_i Σ J_iᵀ = a Σ_pp aᵀ + 2 sym(a Σ_pU bᵀ) + b Σ_UU bᵀ, Σ_pU = −T_p Σ_U.
+      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(nr, nr);
+      if (!cols.empty()) {
+        const Eigen::MatrixXd s_uu = Gather(out.reduced_cov, cols, cols);
+        h += b * s_uu * b.transpose();
+      }
+      if (pt >= 0) {
+        const PointCoupling& c = coupling[pt];
+        h += a * out.point_cov[pt] * a.transpose();
+        if (!cols.empty() && !c.cols.empty()) {
+          const Eigen::MatrixXd cross = a * c.t * Gather(out.reduced_cov, c.cols, cols) * b.transpose();
+          h -= cross + cross.transpose();
+        }
+      }
+      for (int k = 0; k < nr; ++k) {
+        if (!(mask & (1u << k))) continue;
+        ++g.rows;
+        g.sum_squares += adjusted_residuals[r0 + k] * adjusted_residuals[r0 + k];
+        g.leverage += h(k, k);
+      }
+    }
+    out.groups.push_back(g);
+  }
+}
+
+// Points triangulated with the cameras held (independent check points);
+// false when their Jacobian cannot be evaluated.
+bool CheckCovariances(const PrecisionProblem& p, ceres::Problem::EvaluateOptions eval, PrecisionSolution* solution) {
+  ceres::Problem& problem = *p.problem;
+  PrecisionSolution& out = *solution;
+  ceres::CRSMatrix crs;
+  std::vector<double*> check_blocks;
+  std::vector<ceres::ResidualBlockId> ids;
+  std::vector<int> first_row;
+  for (const auto& rows : p.checks) {
+    check_blocks.push_back(rows.position);
+    first_row.push_back(2 * static_cast<int>(ids.size()));
+    ids.insert(ids.end(), rows.ids.begin(), rows.ids.end());
+  }
+  first_row.push_back(2 * static_cast<int>(ids.size()));
+  const int nk3 = 3 * static_cast<int>(check_blocks.size());
+  check_blocks.insert(check_blocks.end(), p.reduced.begin(), p.reduced.end());
+  eval.parameter_blocks = check_blocks;
+  eval.residual_blocks = ids;
+  if (!problem.Evaluate(eval, nullptr, nullptr, nullptr, &crs)) {
+    out.note = "the check points' Jacobian could not be evaluated";
+    return false;
+  }
+  const RowView jk = View(crs);
+  for (size_t k = 0; k < p.checks.size(); ++k) {
+    Eigen::MatrixXd a, b;
+    std::vector<int> cols;
+    SplitRows(jk, first_row[k], first_row[k + 1], 3 * static_cast<int>(k), nk3, &a, &cols, &b);
+    const Eigen::Matrix3d ata_inv = (a.transpose() * a).inverse();
+    Eigen::Matrix3d cov = ata_inv;
+    if (!cols.empty()) {
+      const Eigen::MatrixXd g = ata_inv * a.transpose() * b;
+      cov += g * Gather(out.reduced_cov, cols, cols) * g.transpose();
+    }
+    out.check_cov.push_back(cov);
+  }
+  return true;
+}
+
+// Cofactors of the target marks' residuals; false when their Jacobian
+// cannot be evaluated.
+bool MarkCofactors(const PrecisionProblem& p, ceres::Problem::EvaluateOptions eval, const std::vector<double*>& blocks,
+                   const std::vector<PointCoupling>& coupling, int n3, PrecisionSolution* solution) {
+  ceres::Problem& problem = *p.problem;
+  PrecisionSolution& out = *solution;
+  ceres::CRSMatrix crs;
+  std::vector<ceres::ResidualBlockId> ids;
+  for (const auto& rows : p.marks) ids.push_back(rows.ids.at(0));
+  eval.parameter_blocks = blocks;
+  eval.residual_blocks = ids;
+  eval.apply_loss_function = false;
+  std::vector<double> residuals;
+  if (!problem.Evaluate(eval, nullptr, &residuals, nullptr, &crs)) {
+    out.note = "the marks' Jacobian could not be evaluated";
+    return false;
+  }
+  const RowView jm = View(crs);
+  for (size_t m = 0; m < p.marks.size(); ++m) {
+    const int pt = p.marks[m].point;
+    const PointCoupling& c = coupling.at(pt);
+    Eigen::MatrixXd a, b;
+    std::vector<int> cols;
+    SplitRows(jm, 2 * static_cast<int>(m), 2 * static_cast<int>(m) + 2, 3 * pt, n3, &a, &cols, &b);
+    // g = a T_p − b over the union of both column sets.
+    std::vector<int> all = c.cols;
+    all.insert(all.end(), cols.begin(), cols.end());
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    Eigen::MatrixXd g = Eigen::MatrixXd::Zero(2, static_cast<Eigen::Index>(all.size()));
+    auto at = [&](int col) { return static_cast<int>(std::lower_bound(all.begin(), all.end(), col) - all.begin()); };
+    const Eigen::MatrixXd at_p = a * c.t;
+    for (size_t k = 0; k < c.cols.size(); ++k) g.col(at(c.cols[k])) += at_p.col(k);
+    for (size_t k = 0; k < cols.size(); ++k) g.col(at(cols[k])) -= b.col(k);
+    Eigen::Matrix2d q = a * c.v_inv * a.transpose();
+    if (!all.empty()) q += g * Gather(out.reduced_cov, all, all) * g.transpose();
+    MarkCofactor mc;
+    mc.residual = Eigen::Vector2d(residuals[2 * m], residuals[2 * m + 1]);
+    mc.qvv = Eigen::Vector2d(std::max(0.0, 1.0 - q(0, 0)), std::max(0.0, 1.0 - q(1, 1)));
+    out.marks.push_back(mc);
+  }
+  return true;
+}
+
+}  // namespace
+
+PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
+  PrecisionSolution out;
+  ceres::Problem& problem = *p.problem;
+  const int np = static_cast<int>(p.points.size());
+  const int n3 = 3 * np;
+  int nc = 0;
+  for (double* block : p.reduced) {
+    out.reduced_offset.push_back(nc);
+    nc += problem.ParameterBlockTangentSize(block);
+  }
+  std::vector<double*> blocks = p.points;
+  blocks.insert(blocks.end(), p.reduced.begin(), p.reduced.end());
+
+  ceres::Problem::EvaluateOptions eval;
+  eval.parameter_blocks = blocks;
+  eval.residual_blocks = p.adjusted;
+  eval.apply_loss_function = true;
+  eval.num_threads = std::max(1, p.num_threads);
+  ceres::CRSMatrix crs_main;  // the adjusted rows' Jacobian (viewed by j)
+  std::vector<double> adjusted_residuals;
+  if (!problem.Evaluate(eval, nullptr, p.groups.empty() ? nullptr : &adjusted_residuals, nullptr, &crs_main)) {
+    out.note = "the Jacobian could not be evaluated at the solution";
+    return out;
+  }
+  const RowView j = View(crs_main);
+  out.num_rows = static_cast<int>(j.rows());
+  out.num_params = n3 + nc;
+  // S = Jrᵀ Jr − Σ_p W_pᵀ V_p⁻¹ W_p. V_p and W_p are accumulated from the
+  // rows of J that hold point p (a residual holds at most one point), never
+  // as sparse products over all points: Eigen's pruned sparse product costs
+  // a pass over every point column per column (hours at 100,000 points).
+  Eigen::MatrixXd s = Eigen::MatrixXd::Zero(nc, nc);
+  AddReducedProduct(j, n3, &s);
+  const std::vector<PointCoupling> coupling = EliminatePoints(j, np, n3, &s, &out.undetermined_points);
 
   if (nc > 0) {
     if (!InverseByCholesky(s, p.num_threads, &out.reduced_cov)) {
@@ -230,131 +389,11 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
     if (!c.cols.empty()) out.point_cov[pt] += c.t * Gather(out.reduced_cov, c.cols, c.cols) * c.t.transpose();
   }
 
-  // Each group's residuals and leverages, from the rows of J.
-  if (!p.groups.empty()) {
-    std::unordered_map<ceres::ResidualBlockId, int> first_row;
-    first_row.reserve(p.adjusted.size());
-    int row = 0;
-    for (ceres::ResidualBlockId id : p.adjusted) {
-      first_row.emplace(id, row);
-      row += problem.GetCostFunctionForResidualBlock(id)->num_residuals();
-    }
-    for (const PrecisionProblem::Group& group : p.groups) {
-      GroupRedundancy g;
-      for (const auto& [id, mask] : group.rows) {
-        const auto it = first_row.find(id);
-        if (it == first_row.end()) continue;
-        const int r0 = it->second;
-        const int nr = problem.GetCostFunctionForResidualBlock(id)->num_residuals();
-        // The point the rows hold, if any (a residual holds at most one).
-        int pt = -1;
-        for (int r = r0; r < r0 + nr && pt < 0; ++r) {
-          for (RowView::InnerIterator c(j, r); c; ++c) {
-            if (c.col() < n3) {
-              pt = c.col() / 3;
-              break;
-            }
-          }
-        }
-        Eigen::MatrixXd a, b;
-        std::vector<int> cols;
-        SplitRows(j, r0, r0 + nr, pt >= 0 ? 3 * pt : -3, n3, &a, &cols, &b);
-        // J_i Σ J_iᵀ = a Σ_pp aᵀ + 2 sym(a Σ_pU bᵀ) + b Σ_UU bᵀ, Σ_pU = −T_p Σ_U.
-        Eigen::MatrixXd h = Eigen::MatrixXd::Zero(nr, nr);
-        if (!cols.empty()) {
-          const Eigen::MatrixXd s_uu = Gather(out.reduced_cov, cols, cols);
-          h += b * s_uu * b.transpose();
-        }
-        if (pt >= 0) {
-          const PointCoupling& c = coupling[pt];
-          h += a * out.point_cov[pt] * a.transpose();
-          if (!cols.empty() && !c.cols.empty()) {
-            const Eigen::MatrixXd cross = a * c.t * Gather(out.reduced_cov, c.cols, cols) * b.transpose();
-            h -= cross + cross.transpose();
-          }
-        }
-        for (int k = 0; k < nr; ++k) {
-          if (!(mask & (1u << k))) continue;
-          ++g.rows;
-          g.sum_squares += adjusted_residuals[r0 + k] * adjusted_residuals[r0 + k];
-          g.leverage += h(k, k);
-        }
-      }
-      out.groups.push_back(g);
-    }
-  }
+  if (!p.groups.empty()) GroupRedundancies(p, j, n3, coupling, adjusted_residuals, &out);
 
-  // Points triangulated with the cameras held (independent check points).
-  if (!p.checks.empty()) {
-    std::vector<double*> check_blocks;
-    std::vector<ceres::ResidualBlockId> ids;
-    std::vector<int> first_row;
-    for (const auto& rows : p.checks) {
-      check_blocks.push_back(rows.position);
-      first_row.push_back(2 * static_cast<int>(ids.size()));
-      ids.insert(ids.end(), rows.ids.begin(), rows.ids.end());
-    }
-    first_row.push_back(2 * static_cast<int>(ids.size()));
-    const int nk3 = 3 * static_cast<int>(check_blocks.size());
-    check_blocks.insert(check_blocks.end(), p.reduced.begin(), p.reduced.end());
-    eval.parameter_blocks = check_blocks;
-    eval.residual_blocks = ids;
-    if (!problem.Evaluate(eval, nullptr, nullptr, nullptr, &crs)) {
-      out.note = "the check points' Jacobian could not be evaluated";
-      return out;
-    }
-    const RowView jk = View(crs);
-    for (size_t k = 0; k < p.checks.size(); ++k) {
-      Eigen::MatrixXd a, b;
-      std::vector<int> cols;
-      SplitRows(jk, first_row[k], first_row[k + 1], 3 * static_cast<int>(k), nk3, &a, &cols, &b);
-      const Eigen::Matrix3d ata_inv = (a.transpose() * a).inverse();
-      Eigen::Matrix3d cov = ata_inv;
-      if (!cols.empty()) {
-        const Eigen::MatrixXd g = ata_inv * a.transpose() * b;
-        cov += g * Gather(out.reduced_cov, cols, cols) * g.transpose();
-      }
-      out.check_cov.push_back(cov);
-    }
-  }
+  if (!p.checks.empty() && !CheckCovariances(p, eval, &out)) return out;
 
-  // Cofactors of the target marks' residuals.
-  if (!p.marks.empty()) {
-    std::vector<ceres::ResidualBlockId> ids;
-    for (const auto& rows : p.marks) ids.push_back(rows.ids.at(0));
-    eval.parameter_blocks = blocks;
-    eval.residual_blocks = ids;
-    eval.apply_loss_function = false;
-    std::vector<double> residuals;
-    if (!problem.Evaluate(eval, nullptr, &residuals, nullptr, &crs)) {
-      out.note = "the marks' Jacobian could not be evaluated";
-      return out;
-    }
-    const RowView jm = View(crs);
-    for (size_t m = 0; m < p.marks.size(); ++m) {
-      const int pt = p.marks[m].point;
-      const PointCoupling& c = coupling.at(pt);
-      Eigen::MatrixXd a, b;
-      std::vector<int> cols;
-      SplitRows(jm, 2 * static_cast<int>(m), 2 * static_cast<int>(m) + 2, 3 * pt, n3, &a, &cols, &b);
-      // g = a T_p − b over the union of both column sets.
-      std::vector<int> all = c.cols;
-      all.insert(all.end(), cols.begin(), cols.end());
-      std::sort(all.begin(), all.end());
-      all.erase(std::unique(all.begin(), all.end()), all.end());
-      Eigen::MatrixXd g = Eigen::MatrixXd::Zero(2, static_cast<Eigen::Index>(all.size()));
-      auto at = [&](int col) { return static_cast<int>(std::lower_bound(all.begin(), all.end(), col) - all.begin()); };
-      const Eigen::MatrixXd at_p = a * c.t;
-      for (size_t k = 0; k < c.cols.size(); ++k) g.col(at(c.cols[k])) += at_p.col(k);
-      for (size_t k = 0; k < cols.size(); ++k) g.col(at(cols[k])) -= b.col(k);
-      Eigen::Matrix2d q = a * c.v_inv * a.transpose();
-      if (!all.empty()) q += g * Gather(out.reduced_cov, all, all) * g.transpose();
-      MarkCofactor mc;
-      mc.residual = Eigen::Vector2d(residuals[2 * m], residuals[2 * m + 1]);
-      mc.qvv = Eigen::Vector2d(std::max(0.0, 1.0 - q(0, 0)), std::max(0.0, 1.0 - q(1, 1)));
-      out.marks.push_back(mc);
-    }
-  }
+  if (!p.marks.empty() && !MarkCofactors(p, eval, blocks, coupling, n3, &out)) return out;
   out.ok = true;
   return out;
 }

@@ -327,9 +327,9 @@ void WriteDeliverable(const std::filesystem::path& source, const OrthoOptions& o
 
 }  // namespace
 
-void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int image)>& load_image,
-                      const Raster& surface_in, const CrsToWorldFactory& to_world_factory, const OrthoOptions& o,
-                      const std::filesystem::path& path, const ProgressCallback& progress, OrthoSummary* summary) {
+namespace {
+
+void CheckOrthoOptions(const OrthoOptions& o) {
   if (!(o.resolution_m > 0)) throw InvalidArgument("orthomosaic: the resolution must be > 0");
   if (o.tile_size < 64 || o.tile_margin < 0 || o.seam_cell_factor < 1 || o.blend_bands < 0) {
     throw InvalidArgument("orthomosaic: tile size >= 64, margin >= 0, seam factor >= 1, bands >= 0");
@@ -339,31 +339,30 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
                           std::to_string(o.share_count));
   }
   Compression(o);  // checked before the work
-  const unsigned threads = ThreadCount(o.num_threads);
+}
 
-  // The grid: the surface's extent with data, at the ortho resolution.
-  const float nd = static_cast<float>(surface_in.nodata);
+// The ortho grid over the surface's extent with data, at the ortho
+// resolution, and the seam grid: coarse enough to stay within 16 M cells.
+struct OrthoGrids {
+  Grid grid, coarse;
+  int factor = 1;
+};
+
+OrthoGrids MakeGrids(const Raster& surface, const OrthoOptions& o) {
+  const float nd = static_cast<float>(surface.nodata);
   double min_x = 1e300, max_x = -1e300, min_y = 1e300, max_y = -1e300;
-  for (int y = 0; y < surface_in.height; ++y) {
-    for (int x = 0; x < surface_in.width; ++x) {
-      if (surface_in.at(x, y) == nd) continue;
-      min_x = std::min(min_x, surface_in.geotransform[0] + x * surface_in.geotransform[1]);
-      max_x = std::max(max_x, surface_in.geotransform[0] + (x + 1) * surface_in.geotransform[1]);
-      max_y = std::max(max_y, surface_in.geotransform[3] + y * surface_in.geotransform[5]);
-      min_y = std::min(min_y, surface_in.geotransform[3] + (y + 1) * surface_in.geotransform[5]);
+  for (int y = 0; y < surface.height; ++y) {
+    for (int x = 0; x < surface.width; ++x) {
+      if (surface.at(x, y) == nd) continue;
+      min_x = std::min(min_x, surface.geotransform[0] + x * surface.geotransform[1]);
+      max_x = std::max(max_x, surface.geotransform[0] + (x + 1) * surface.geotransform[1]);
+      max_y = std::max(max_y, surface.geotransform[3] + y * surface.geotransform[5]);
+      min_y = std::min(min_y, surface.geotransform[3] + (y + 1) * surface.geotransform[5]);
     }
   }
   if (max_x < min_x) throw InvalidArgument("orthomosaic: the surface has no data");
-  Raster surface = surface_in;
-  long long interpolated = 0;
-  if (o.fill_surface_holes) {
-    const std::vector<float> filled = FilledNodata(surface, surface.width + surface.height + 1.0, o.work_dir, 20);
-    for (size_t k = 0; k < filled.size(); ++k) {
-      interpolated += surface.values[k] == nd && filled[k] != nd;
-    }
-    surface.values = filled;
-  }
-  Grid grid;
+  OrthoGrids g;
+  Grid& grid = g.grid;
   grid.res = o.resolution_m;
   grid.x0 = std::floor(min_x / grid.res) * grid.res;
   grid.y0 = std::ceil(max_y / grid.res) * grid.res;
@@ -373,19 +372,34 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     throw InvalidArgument("orthomosaic: " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
                           " cells is too large; choose a coarser --ortho-resolution");
   }
-  // The seam grid: coarse enough to stay within 16 M cells.
-  int factor = o.seam_cell_factor;
-  while (static_cast<double>(grid.width) * grid.height / (factor * factor) > 16e6) ++factor;
-  Grid coarse;
-  coarse.res = grid.res * factor;
-  coarse.x0 = grid.x0;
-  coarse.y0 = grid.y0;
-  coarse.width = (grid.width + factor - 1) / factor;
-  coarse.height = (grid.height + factor - 1) / factor;
+  g.factor = o.seam_cell_factor;
+  while (static_cast<double>(grid.width) * grid.height / (g.factor * g.factor) > 16e6) ++g.factor;
+  g.coarse.res = grid.res * g.factor;
+  g.coarse.x0 = grid.x0;
+  g.coarse.y0 = grid.y0;
+  g.coarse.width = (grid.width + g.factor - 1) / g.factor;
+  g.coarse.height = (grid.height + g.factor - 1) / g.factor;
+  return g;
+}
 
-  ReportProgress(progress, 0.0, "orthomosaic: views and occlusion");
-  std::vector<Eigen::Vector3d> world(static_cast<size_t>(coarse.width) * coarse.height);
-  std::vector<char> has_surface(world.size(), 0);
+// The surface with its holes interpolated (fill_surface_holes); *interpolated
+// counts the cells filled.
+Raster FillSurface(const Raster& surface_in, const OrthoOptions& o, long long* interpolated) {
+  Raster surface = surface_in;
+  *interpolated = 0;
+  if (!o.fill_surface_holes) return surface;
+  const float nd = static_cast<float>(surface.nodata);
+  const std::vector<float> filled = FilledNodata(surface, surface.width + surface.height + 1.0, o.work_dir, 20);
+  for (size_t k = 0; k < filled.size(); ++k) *interpolated += surface.values[k] == nd && filled[k] != nd;
+  surface.values = filled;
+  return surface;
+}
+
+// World coordinates of the coarse cells (and which have a surface).
+void CoarseWorld(const Raster& surface, const Grid& coarse, const CrsToWorldFactory& to_world_factory,
+                 unsigned threads, std::vector<Eigen::Vector3d>* world, std::vector<char>* has_surface) {
+  world->assign(static_cast<size_t>(coarse.width) * coarse.height, Eigen::Vector3d::Zero());
+  has_surface->assign(world->size(), 0);
   ParallelFor(threads, threads, [&](size_t t) {
     const CrsToWorld to_world = to_world_factory();  // one per thread
     for (size_t j = t; j < static_cast<size_t>(coarse.height); j += threads) {
@@ -393,12 +407,19 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
         const size_t c = j * coarse.width + i;
         const auto z = SurfaceAt(surface, coarse.X(i), coarse.Y(static_cast<double>(j)));
         if (!z) continue;
-        world[c] = to_world({coarse.X(i), coarse.Y(static_cast<double>(j)), *z});
-        has_surface[c] = 1;
+        (*world)[c] = to_world({coarse.X(i), coarse.Y(static_cast<double>(j)), *z});
+        (*has_surface)[c] = 1;
       }
     }
   });
+}
 
+// Every registered photo as a view: its coarse rendering, occlusion buffer
+// and footprint, weighted by its sharpness against the median.
+std::vector<View> PrepareViews(const SparseModel& model, const std::function<cv::Mat(int image)>& load_image,
+                               const Grid& coarse, const std::vector<Eigen::Vector3d>& world,
+                               const std::vector<char>& has_surface, unsigned threads,
+                               const ProgressCallback& progress) {
   std::vector<View> views;
   for (size_t k = 0; k < model.images.size(); ++k) {
     const Image& image = model.images[k];
@@ -433,8 +454,11 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     median_sharpness = sharpness[sharpness.size() / 2];
   }
   for (View& v : views) v.weight = 0.9 + 0.1 * std::min(1.0, v.sharpness / std::max(1e-9, median_sharpness));
+  return views;
+}
 
-  // Best view per coarse cell.
+// The best view per coarse cell.
+cv::Mat BestViewLabels(const std::vector<View>& views, const Grid& coarse) {
   cv::Mat label(coarse.height, coarse.width, CV_32S, cv::Scalar(-1));
   cv::Mat best(coarse.height, coarse.width, CV_32F, cv::Scalar(-1.0f));
   for (size_t k = 0; k < views.size(); ++k) {
@@ -453,11 +477,21 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
       }
     }
   }
+  return label;
+}
 
-  // Seams: the partition widened by a band, cut where the views agree.
-  std::vector<int> seam_views;
-  std::vector<cv::UMat> seam_images, seam_masks;
+// Seams: the partition widened by a band, cut where the views agree
+// (OpenCV's graph-cut seam finder); label: each coarse cell's view after.
+struct Seams {
+  std::vector<int> views;
   std::vector<cv::Point> corners;
+  cv::Mat label;
+};
+
+Seams FindSeams(const std::vector<View>& views, const cv::Mat& label, const Grid& coarse, const OrthoOptions& o,
+                const ProgressCallback& progress) {
+  Seams seams;
+  std::vector<cv::UMat> seam_images, seam_masks;
   const cv::Mat band = cv::getStructuringElement(
       cv::MORPH_ELLIPSE, cv::Size(2 * o.seam_band_cells + 1, 2 * o.seam_band_cells + 1));
   for (size_t k = 0; k < views.size(); ++k) {
@@ -468,84 +502,266 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
     cv::Mat widened;
     cv::dilate(own, widened, band);
     widened &= v.valid > 0;
-    seam_views.push_back(static_cast<int>(k));
+    seams.views.push_back(static_cast<int>(k));
     seam_images.push_back(v.colour.getUMat(cv::ACCESS_READ));  // a view of the rendering, not a copy
     seam_masks.push_back(widened.getUMat(cv::ACCESS_READ).clone());
-    corners.push_back(v.bbox.tl());
+    seams.corners.push_back(v.bbox.tl());
   }
-  ReportProgress(progress, 0.32, "orthomosaic: seams (" + std::to_string(seam_views.size()) + " photos)");
-  if (seam_views.size() > 1 && o.seam_band_cells > 0) {
+  ReportProgress(progress, 0.32, "orthomosaic: seams (" + std::to_string(seams.views.size()) + " photos)");
+  if (seams.views.size() > 1 && o.seam_band_cells > 0) {
     cv::detail::GraphCutSeamFinder finder(cv::detail::GraphCutSeamFinderBase::COST_COLOR_GRAD);
-    finder.find(seam_images, corners, seam_masks);
+    finder.find(seam_images, seams.corners, seam_masks);
   }
-  cv::Mat seam_label(coarse.height, coarse.width, CV_32S, cv::Scalar(-1));
-  for (size_t s = 0; s < seam_views.size(); ++s) {
-    const int k = seam_views[s];
+  seams.label = cv::Mat(coarse.height, coarse.width, CV_32S, cv::Scalar(-1));
+  for (size_t s = 0; s < seams.views.size(); ++s) {
+    const int k = seams.views[s];
     const cv::Mat mask = seam_masks[s].getMat(cv::ACCESS_READ);
     const cv::Rect& r = views[k].bbox;
     for (int j = 0; j < r.height; ++j) {
       for (int i = 0; i < r.width; ++i) {
         if (!mask.at<std::uint8_t>(j, i)) continue;
-        int& l = seam_label.at<int>(j + r.y, i + r.x);
+        int& l = seams.label.at<int>(j + r.y, i + r.x);
         if (l < 0 || label.at<int>(j + r.y, i + r.x) == k) l = k;
       }
     }
   }
   for (int j = 0; j < coarse.height; ++j) {
     for (int i = 0; i < coarse.width; ++i) {
-      if (seam_label.at<int>(j, i) < 0) seam_label.at<int>(j, i) = label.at<int>(j, i);
+      if (seams.label.at<int>(j, i) < 0) seams.label.at<int>(j, i) = label.at<int>(j, i);
     }
   }
+  return seams;
+}
 
-  // Exposure: per-channel gains over the overlaps.
-  if (o.exposure_compensation && seam_views.size() > 1) {
-    std::vector<cv::UMat> images8;
-    std::vector<std::pair<cv::UMat, std::uint8_t>> valid_masks;
-    for (int k : seam_views) {
-      cv::Mat c8;
-      views[k].colour.convertTo(c8, CV_8UC3);
-      images8.push_back(c8.getUMat(cv::ACCESS_READ).clone());
-      const cv::Mat visible = views[k].valid == 255;  // gains from what each view really sees
-      valid_masks.emplace_back(visible.getUMat(cv::ACCESS_READ).clone(), 255);
+// Exposure: per-channel gains over the overlaps (OpenCV's compensator).
+void CompensateExposure(const Seams& seams, const OrthoOptions& o, std::vector<View>* views) {
+  if (!o.exposure_compensation || seams.views.size() <= 1) return;
+  std::vector<cv::UMat> images8;
+  std::vector<std::pair<cv::UMat, std::uint8_t>> valid_masks;
+  for (int k : seams.views) {
+    cv::Mat c8;
+    (*views)[k].colour.convertTo(c8, CV_8UC3);
+    images8.push_back(c8.getUMat(cv::ACCESS_READ).clone());
+    const cv::Mat visible = (*views)[k].valid == 255;  // gains from what each view really sees
+    valid_masks.emplace_back(visible.getUMat(cv::ACCESS_READ).clone(), 255);
+  }
+  cv::detail::ChannelsCompensator compensator;
+  compensator.feed(seams.corners, images8, valid_masks);
+  const std::vector<cv::Scalar> gains = compensator.gains();
+  for (size_t s = 0; s < seams.views.size() && s < gains.size(); ++s) (*views)[seams.views[s]].gain = gains[s];
+}
+
+// What drawing a tile reads.
+struct TileInputs {
+  const OrthoGrids& grids;
+  const Raster& surface;     // holes filled
+  const Raster& surface_in;  // as given: which cells have data of their own
+  const CrsToWorldFactory& to_world_factory;
+  const std::vector<View>& views;
+  const cv::Mat& seam_label;
+  const OrthoOptions& o;
+  ImageCache& cache;
+  std::vector<std::atomic<char>>& used;
+};
+
+// The region's cells: surface heights (NaN without) and world coordinates.
+struct RegionCells {
+  cv::Rect region;
+  cv::Mat z;           // CV_32F
+  cv::Mat world;       // CV_64FC3
+  bool any = false;
+};
+
+RegionCells CellsOf(const TileInputs& in, const cv::Rect& region) {
+  const Grid& grid = in.grids.grid;
+  RegionCells cells;
+  cells.region = region;
+  cells.z = cv::Mat(region.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+  double z_lo = 1e300, z_hi = -1e300;
+  for (int j = 0; j < region.height; ++j) {
+    for (int i = 0; i < region.width; ++i) {
+      const auto h = SurfaceAt(in.surface, grid.X(region.x + i), grid.Y(region.y + j));
+      if (!h) continue;
+      cells.z.at<float>(j, i) = static_cast<float>(*h);
+      z_lo = std::min(z_lo, *h), z_hi = std::max(z_hi, *h);
     }
-    cv::detail::ChannelsCompensator compensator;
-    compensator.feed(corners, images8, valid_masks);
-    const std::vector<cv::Scalar> gains = compensator.gains();
-    for (size_t s = 0; s < seam_views.size() && s < gains.size(); ++s) views[seam_views[s]].gain = gains[s];
   }
-  // The coarse renderings have done their work (the views of them first).
-  seam_images.clear();
-  seam_masks.clear();
-  for (View& v : views) {
-    v.colour.release();
-    v.cosine.release();
-  }
-
-  // The tiles this call draws: all of them, or a share's run of tile rows.
-  const int T = o.tile_size, M = o.tile_margin;
-  const int tiles_x = (grid.width + T - 1) / T, tiles_y = (grid.height + T - 1) / T;
-  const int row0 = static_cast<int>(static_cast<long long>(tiles_y) * o.share_index / o.share_count);
-  const int row1 = static_cast<int>(static_cast<long long>(tiles_y) * (o.share_index + 1) / o.share_count);
-  const int band_y = row0 * T, band_height = std::min(grid.height, row1 * T) - band_y;
-  const size_t first_tile = static_cast<size_t>(row0) * tiles_x;
-  const size_t tiles = static_cast<size_t>(tiles_x) * (row1 - row0);
-  if (band_height <= 0) {  // an empty share (more shares than tile rows): no band
-    if (summary) {
-      *summary = OrthoSummary();
-      summary->width = grid.width;
-      summary->height = grid.height;
-      summary->surface_cells_interpolated = interpolated;
-      summary->band_y = band_y;
+  cells.any = z_hi >= z_lo;
+  if (!cells.any) return cells;
+  const BlockToWorld block(grid, region, z_lo, z_hi, in.to_world_factory());
+  cells.world = cv::Mat(region.size(), CV_64FC3);
+  for (int j = 0; j < region.height; ++j) {
+    for (int i = 0; i < region.width; ++i) {
+      const float h = cells.z.at<float>(j, i);
+      if (std::isnan(h)) continue;
+      const Eigen::Vector3d w = block.At(region.x + i, region.y + j, h);
+      cells.world.at<cv::Vec3d>(j, i) = cv::Vec3d(w.x(), w.y(), w.z());
     }
-    ReportProgress(progress, 1.0, "orthomosaic: no tile rows in this share");
-    return;
   }
+  return cells;
+}
 
-  // Output: an RGBA GeoTIFF (the band) written tile by tile.
-  GDALAllRegister();
-  const std::filesystem::path work_dir = o.work_dir.empty() ? path.parent_path() : o.work_dir;
-  // A temporary name (an interrupted run's is swept away), in the work folder.
-  const std::filesystem::path build = work_dir / (TemporaryPathFor(path).filename().string() + ".building.tif");
+// The candidate views of a region (every view whose footprint meets it: the
+// same views for a cell whichever tile draws it, so that tiles agree at
+// their borders), each with its resampling maps and scores.
+struct Candidates {
+  std::vector<int> views;
+  std::vector<cv::Mat> map_x, map_y, score;
+};
+
+Candidates ProjectCandidates(const TileInputs& in, const RegionCells& cells) {
+  const cv::Rect& region = cells.region;
+  const int factor = in.grids.factor;
+  std::set<int> candidates;
+  const cv::Rect coarse_region =
+      cv::Rect(region.x / factor - 1, region.y / factor - 1, region.width / factor + 3, region.height / factor + 3) &
+      cv::Rect(0, 0, in.grids.coarse.width, in.grids.coarse.height);
+  for (size_t k = 0; k < in.views.size(); ++k) {
+    if (!in.views[k].bbox.empty() && (in.views[k].bbox & coarse_region).area() > 0) {
+      candidates.insert(static_cast<int>(k));
+    }
+  }
+  Candidates c;
+  c.views.assign(candidates.begin(), candidates.end());
+  c.map_x.resize(c.views.size());
+  c.map_y.resize(c.views.size());
+  c.score.resize(c.views.size());
+  for (size_t n = 0; n < c.views.size(); ++n) {
+    const View& v = in.views[c.views[n]];
+    c.map_x[n] = cv::Mat(region.size(), CV_32F, cv::Scalar(-1.0f));
+    c.map_y[n] = cv::Mat(region.size(), CV_32F, cv::Scalar(-1.0f));
+    c.score[n] = cv::Mat(region.size(), CV_32F, cv::Scalar(-1.0f));
+    Eigen::Vector2d xy;
+    for (int j = 0; j < region.height; ++j) {
+      for (int i = 0; i < region.width; ++i) {
+        if (std::isnan(cells.z.at<float>(j, i))) continue;
+        const cv::Vec3d& cw = cells.world.at<cv::Vec3d>(j, i);
+        const Eigen::Vector3d w(cw[0], cw[1], cw[2]);
+        const Sight sight = Project(v, w, &xy);
+        if (sight == kOutOfFrame) continue;
+        c.map_x[n].at<float>(j, i) = static_cast<float>(xy.x());
+        c.map_y[n].at<float>(j, i) = static_cast<float>(xy.y());
+        const Eigen::Vector3d ray = v.pose.centre_in_world - w;
+        c.score[n].at<float>(j, i) = Score(sight, ray.z() / ray.norm(), v.weight);
+      }
+    }
+  }
+  return c;
+}
+
+// Each cell's view (an index into the candidates): its coarse cell's, else
+// the best that sees it; -1 where none.
+cv::Mat AssignOwners(const TileInputs& in, const RegionCells& cells, const Candidates& c) {
+  const cv::Rect& region = cells.region;
+  const Grid& coarse = in.grids.coarse;
+  const int factor = in.grids.factor;
+  cv::Mat owner(region.size(), CV_32S, cv::Scalar(-1));
+  std::vector<int> index_of(in.views.size(), -1);
+  for (size_t n = 0; n < c.views.size(); ++n) index_of[c.views[n]] = static_cast<int>(n);
+  for (int j = 0; j < region.height; ++j) {
+    for (int i = 0; i < region.width; ++i) {
+      if (std::isnan(cells.z.at<float>(j, i))) continue;
+      const int l = in.seam_label.at<int>(std::min(coarse.height - 1, (region.y + j) / factor),
+                                          std::min(coarse.width - 1, (region.x + i) / factor));
+      if (l >= 0 && index_of[l] >= 0 && c.score[index_of[l]].at<float>(j, i) >= 1.0f) {  // in sight
+        owner.at<int>(j, i) = index_of[l];
+        continue;
+      }
+      float b = -1.0f;
+      for (size_t n = 0; n < c.views.size(); ++n) {
+        if (c.score[n].at<float>(j, i) > b) b = c.score[n].at<float>(j, i), owner.at<int>(j, i) = static_cast<int>(n);
+      }
+    }
+  }
+  return owner;
+}
+
+// Each owning view resampled, its exposure gain applied, and the owners
+// blended across their seams (OpenCV's multi-band blender).
+cv::Mat ResampleAndBlend(const TileInputs& in, const cv::Rect& region, const Candidates& c, const cv::Mat& owner) {
+  std::vector<int> owners;
+  for (size_t n = 0; n < c.views.size(); ++n) {
+    if (cv::countNonZero(owner == static_cast<int>(n)) > 0) owners.push_back(static_cast<int>(n));
+  }
+  cv::Mat blended(region.size(), CV_8UC3, cv::Scalar(0, 0, 0));
+  if (owners.empty()) return blended;
+  const bool blend = owners.size() > 1 && in.o.blend_bands > 0;
+  cv::detail::MultiBandBlender blender(false, in.o.blend_bands, CV_16S);
+  if (blend) blender.prepare(cv::Rect(0, 0, region.width, region.height));
+  for (int n : owners) {
+    const View& v = in.views[c.views[n]];
+    in.used[c.views[n]] = 1;
+    const auto photo = in.cache.Get(v.image);
+    cv::Mat patch;
+    cv::remap(*photo, patch, c.map_x[n], c.map_y[n], cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    cv::Mat patch16;
+    patch.convertTo(patch16, CV_16SC3);
+    if (v.gain != cv::Scalar(1.0, 1.0, 1.0)) {
+      cv::Mat f;
+      patch.convertTo(f, CV_32FC3);
+      cv::multiply(f, v.gain, f);
+      f.convertTo(patch16, CV_16SC3);
+    }
+    const cv::Mat mask = owner == n;
+    if (blend) {
+      blender.feed(patch16, mask, cv::Point(0, 0));
+    } else {
+      cv::Mat p8;
+      patch16.convertTo(p8, CV_8UC3);
+      p8.copyTo(blended, mask);
+    }
+  }
+  if (blend) {
+    cv::Mat dst, dst_mask;
+    blender.blend(dst, dst_mask);
+    dst(cv::Rect(0, 0, region.width, region.height)).convertTo(blended, CV_8UC3);
+  }
+  return blended;
+}
+
+// One tile: RGBA over its inner cells; the cells with a surface of their
+// own (not the holes filled for drawing) and those drawn, counted.
+struct DrawnTile {
+  cv::Mat rgba;
+  long long with_surface = 0, filled = 0;
+};
+
+DrawnTile DrawTile(const TileInputs& in, const cv::Rect& inner) {
+  const Grid& grid = in.grids.grid;
+  const int M = in.o.tile_margin;
+  const cv::Rect region = cv::Rect(inner.x - M, inner.y - M, inner.width + 2 * M, inner.height + 2 * M) &
+                          cv::Rect(0, 0, grid.width, grid.height);
+  DrawnTile tile;
+  tile.rgba = cv::Mat(inner.size(), CV_8UC4, cv::Scalar(0, 0, 0, 0));
+  const RegionCells cells = CellsOf(in, region);
+  if (!cells.any) return tile;
+  const Candidates candidates = ProjectCandidates(in, cells);
+  const cv::Mat owner = AssignOwners(in, cells, candidates);
+  const cv::Mat blended = ResampleAndBlend(in, region, candidates, owner);
+  const Raster& s = in.surface_in;
+  const float nd = static_cast<float>(s.nodata);
+  const cv::Point off = inner.tl() - region.tl();
+  for (int j = 0; j < inner.height; ++j) {
+    for (int i = 0; i < inner.width; ++i) {
+      if (std::isnan(cells.z.at<float>(j + off.y, i + off.x))) continue;
+      const bool owned = owner.at<int>(j + off.y, i + off.x) >= 0;
+      const int sx = static_cast<int>(std::floor((grid.X(inner.x + i) - s.geotransform[0]) / s.geotransform[1]));
+      const int sy = static_cast<int>(std::floor((grid.Y(inner.y + j) - s.geotransform[3]) / s.geotransform[5]));
+      if (sx >= 0 && sy >= 0 && sx < s.width && sy < s.height && s.at(sx, sy) != nd) {
+        ++tile.with_surface;
+        tile.filled += owned;
+      }
+      if (!owned) continue;
+      const cv::Vec3b bgr = blended.at<cv::Vec3b>(j + off.y, i + off.x);
+      tile.rgba.at<cv::Vec4b>(j, i) = cv::Vec4b(bgr[2], bgr[1], bgr[0], 255);
+    }
+  }
+  return tile;
+}
+
+// The RGBA GeoTIFF a band is drawn into, tile by tile.
+std::unique_ptr<GDALDataset> CreateBand(const std::filesystem::path& build, const Grid& grid, int band_y,
+                                        int band_height, const Raster& surface, const OrthoOptions& o) {
   GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
   const char* create_opts[] = {"TILED=YES", "BLOCKXSIZE=512", "BLOCKYSIZE=512", "COMPRESS=DEFLATE",
                                "BIGTIFF=IF_SAFER", "PHOTOMETRIC=RGB", "ALPHA=YES", nullptr};
@@ -557,166 +773,98 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
   if (!surface.wkt.empty()) out->SetProjection(surface.wkt.c_str());
   for (const auto& [key, value] : o.metadata) out->SetMetadataItem(key.c_str(), value.c_str());
   out->GetRasterBand(4)->SetColorInterpretation(GCI_AlphaBand);
-  std::mutex write_mutex;
+  return out;
+}
 
+// The tile rows this call draws: all of them, or a share's run.
+struct TileBand {
+  int tiles_x = 0, band_y = 0, band_height = 0;
+  size_t first_tile = 0, tiles = 0;
+};
+
+TileBand BandOf(const Grid& grid, const OrthoOptions& o) {
+  const int T = o.tile_size;
+  TileBand b;
+  b.tiles_x = (grid.width + T - 1) / T;
+  const int tiles_y = (grid.height + T - 1) / T;
+  const int row0 = static_cast<int>(static_cast<long long>(tiles_y) * o.share_index / o.share_count);
+  const int row1 = static_cast<int>(static_cast<long long>(tiles_y) * (o.share_index + 1) / o.share_count);
+  b.band_y = row0 * T;
+  b.band_height = std::min(grid.height, row1 * T) - b.band_y;
+  b.first_tile = static_cast<size_t>(row0) * b.tiles_x;
+  b.tiles = static_cast<size_t>(b.tiles_x) * (row1 - row0);
+  return b;
+}
+
+}  // namespace
+
+void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int image)>& load_image,
+                      const Raster& surface_in, const CrsToWorldFactory& to_world_factory, const OrthoOptions& o,
+                      const std::filesystem::path& path, const ProgressCallback& progress, OrthoSummary* summary) {
+  CheckOrthoOptions(o);
+  const unsigned threads = ThreadCount(o.num_threads);
+  const OrthoGrids grids = MakeGrids(surface_in, o);
+  const Grid& grid = grids.grid;
+  long long interpolated = 0;
+  const Raster surface = FillSurface(surface_in, o, &interpolated);
+
+  ReportProgress(progress, 0.0, "orthomosaic: views and occlusion");
+  std::vector<Eigen::Vector3d> world;
+  std::vector<char> has_surface;
+  CoarseWorld(surface, grids.coarse, to_world_factory, threads, &world, &has_surface);
+  std::vector<View> views = PrepareViews(model, load_image, grids.coarse, world, has_surface, threads, progress);
+  Seams seams = FindSeams(views, BestViewLabels(views, grids.coarse), grids.coarse, o, progress);
+  CompensateExposure(seams, o, &views);
+  // The coarse renderings have done their work.
+  for (View& v : views) {
+    v.colour.release();
+    v.cosine.release();
+  }
+
+  const TileBand band = BandOf(grid, o);
+  if (band.band_height <= 0) {  // an empty share (more shares than tile rows): no band
+    if (summary) {
+      *summary = OrthoSummary();
+      summary->width = grid.width;
+      summary->height = grid.height;
+      summary->surface_cells_interpolated = interpolated;
+      summary->band_y = band.band_y;
+    }
+    ReportProgress(progress, 1.0, "orthomosaic: no tile rows in this share");
+    return;
+  }
+
+  GDALAllRegister();
+  const std::filesystem::path work_dir = o.work_dir.empty() ? path.parent_path() : o.work_dir;
+  // A temporary name (an interrupted run's is swept away), in the work folder.
+  const std::filesystem::path build = work_dir / (TemporaryPathFor(path).filename().string() + ".building.tif");
+  std::unique_ptr<GDALDataset> out = CreateBand(build, grid, band.band_y, band.band_height, surface, o);
+  std::mutex write_mutex;
   ImageCache cache(load_image, o.image_cache_bytes);
   std::atomic<long long> cells_surface{0}, cells_filled{0};
   std::vector<std::atomic<char>> used(views.size());
   for (auto& u : used) u = 0;
+  const TileInputs inputs{grids, surface, surface_in, to_world_factory, views, seams.label, o, cache, used};
   std::atomic<int> tiles_done{0};
-  ParallelFor(tiles, threads, [&](size_t share_tile) {
-    const size_t t = first_tile + share_tile;
-    const cv::Rect tile(static_cast<int>(t % tiles_x) * T, static_cast<int>(t / tiles_x) * T, T, T);
+  ParallelFor(band.tiles, threads, [&](size_t share_tile) {
+    const int T = o.tile_size;
+    const size_t t = band.first_tile + share_tile;
+    const cv::Rect tile(static_cast<int>(t % band.tiles_x) * T, static_cast<int>(t / band.tiles_x) * T, T, T);
     const cv::Rect inner = tile & cv::Rect(0, 0, grid.width, grid.height);
-    const cv::Rect region = cv::Rect(inner.x - M, inner.y - M, inner.width + 2 * M, inner.height + 2 * M) &
-                            cv::Rect(0, 0, grid.width, grid.height);
-    // Surface heights over the region.
-    cv::Mat z(region.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
-    double z_lo = 1e300, z_hi = -1e300;
-    for (int j = 0; j < region.height; ++j) {
-      for (int i = 0; i < region.width; ++i) {
-        const auto h = SurfaceAt(surface, grid.X(region.x + i), grid.Y(region.y + j));
-        if (!h) continue;
-        z.at<float>(j, i) = static_cast<float>(*h);
-        z_lo = std::min(z_lo, *h), z_hi = std::max(z_hi, *h);
-      }
+    DrawnTile drawn = DrawTile(inputs, inner);
+    cells_surface += drawn.with_surface;
+    cells_filled += drawn.filled;
+    std::lock_guard<std::mutex> lock(write_mutex);
+    int bands[4] = {1, 2, 3, 4};
+    if (out->RasterIO(GF_Write, inner.x, inner.y - band.band_y, inner.width, inner.height, drawn.rgba.data,
+                      inner.width, inner.height, GDT_Byte, 4, bands, 4, static_cast<GSpacing>(drawn.rgba.step), 1,
+                      nullptr) != CE_None) {
+      throw IoError(build.string(), std::string("cannot write a tile: ") + CPLGetLastErrorMsg());
     }
-    cv::Mat rgba(inner.size(), CV_8UC4, cv::Scalar(0, 0, 0, 0));
-    if (z_hi >= z_lo) {
-      const BlockToWorld block(grid, region, z_lo, z_hi, to_world_factory());
-      cv::Mat cell_world(region.size(), CV_64FC3);
-      for (int j = 0; j < region.height; ++j) {
-        for (int i = 0; i < region.width; ++i) {
-          const float h = z.at<float>(j, i);
-          if (std::isnan(h)) continue;
-          const Eigen::Vector3d w = block.At(region.x + i, region.y + j, h);
-          cell_world.at<cv::Vec3d>(j, i) = cv::Vec3d(w.x(), w.y(), w.z());
-        }
-      }
-      // Every view whose footprint meets the region: the same views for a
-      // cell whichever tile draws it, so that tiles agree at their borders.
-      std::set<int> candidates;
-      const cv::Rect coarse_region =
-          cv::Rect(region.x / factor - 1, region.y / factor - 1, region.width / factor + 3, region.height / factor + 3) &
-          cv::Rect(0, 0, coarse.width, coarse.height);
-      for (size_t k = 0; k < views.size(); ++k) {
-        if (!views[k].bbox.empty() && (views[k].bbox & coarse_region).area() > 0) candidates.insert(static_cast<int>(k));
-      }
-      const std::vector<int> cand(candidates.begin(), candidates.end());
-      std::vector<cv::Mat> map_x(cand.size()), map_y(cand.size()), score(cand.size());
-      for (size_t c = 0; c < cand.size(); ++c) {
-        const View& v = views[cand[c]];
-        map_x[c] = cv::Mat(region.size(), CV_32F, cv::Scalar(-1.0f));
-        map_y[c] = cv::Mat(region.size(), CV_32F, cv::Scalar(-1.0f));
-        score[c] = cv::Mat(region.size(), CV_32F, cv::Scalar(-1.0f));
-        Eigen::Vector2d xy;
-        for (int j = 0; j < region.height; ++j) {
-          for (int i = 0; i < region.width; ++i) {
-            if (std::isnan(z.at<float>(j, i))) continue;
-            const cv::Vec3d& cw = cell_world.at<cv::Vec3d>(j, i);
-            const Eigen::Vector3d w(cw[0], cw[1], cw[2]);
-            const Sight sight = Project(v, w, &xy);
-            if (sight == kOutOfFrame) continue;
-            map_x[c].at<float>(j, i) = static_cast<float>(xy.x());
-            map_y[c].at<float>(j, i) = static_cast<float>(xy.y());
-            const Eigen::Vector3d ray = v.pose.centre_in_world - w;
-            score[c].at<float>(j, i) = Score(sight, ray.z() / ray.norm(), v.weight);
-          }
-        }
-      }
-      // Each cell's view: its coarse cell's, else the best that sees it.
-      cv::Mat owner(region.size(), CV_32S, cv::Scalar(-1));
-      std::vector<int> index_of(views.size(), -1);
-      for (size_t c = 0; c < cand.size(); ++c) index_of[cand[c]] = static_cast<int>(c);
-      for (int j = 0; j < region.height; ++j) {
-        for (int i = 0; i < region.width; ++i) {
-          if (std::isnan(z.at<float>(j, i))) continue;
-          const int l = seam_label.at<int>(std::min(coarse.height - 1, (region.y + j) / factor),
-                                           std::min(coarse.width - 1, (region.x + i) / factor));
-          if (l >= 0 && index_of[l] >= 0 && score[index_of[l]].at<float>(j, i) >= 1.0f) {  // in sight
-            owner.at<int>(j, i) = index_of[l];
-            continue;
-          }
-          float b = -1.0f;
-          for (size_t c = 0; c < cand.size(); ++c) {
-            if (score[c].at<float>(j, i) > b) b = score[c].at<float>(j, i), owner.at<int>(j, i) = static_cast<int>(c);
-          }
-        }
-      }
-      // Resample each owning view and blend.
-      std::vector<int> owners;
-      for (size_t c = 0; c < cand.size(); ++c) {
-        if (cv::countNonZero(owner == static_cast<int>(c)) > 0) owners.push_back(static_cast<int>(c));
-      }
-      cv::Mat blended(region.size(), CV_8UC3, cv::Scalar(0, 0, 0));
-      if (!owners.empty()) {
-        const bool blend = owners.size() > 1 && o.blend_bands > 0;
-        cv::detail::MultiBandBlender blender(false, o.blend_bands, CV_16S);
-        if (blend) blender.prepare(cv::Rect(0, 0, region.width, region.height));
-        for (int c : owners) {
-          const View& v = views[cand[c]];
-          used[cand[c]] = 1;
-          const auto photo = cache.Get(v.image);
-          cv::Mat patch;
-          cv::remap(*photo, patch, map_x[c], map_y[c], cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-          cv::Mat patch16;
-          patch.convertTo(patch16, CV_16SC3);
-          if (v.gain != cv::Scalar(1.0, 1.0, 1.0)) {
-            cv::Mat f;
-            patch.convertTo(f, CV_32FC3);
-            cv::multiply(f, v.gain, f);
-            f.convertTo(patch16, CV_16SC3);
-          }
-          const cv::Mat mask = owner == c;
-          if (blend) {
-            blender.feed(patch16, mask, cv::Point(0, 0));
-          } else {
-            cv::Mat p8;
-            patch16.convertTo(p8, CV_8UC3);
-            p8.copyTo(blended, mask);
-          }
-        }
-        if (blend) {
-          cv::Mat dst, dst_mask;
-          blender.blend(dst, dst_mask);
-          dst(cv::Rect(0, 0, region.width, region.height)).convertTo(blended, CV_8UC3);
-        }
-      }
-      long long with_surface = 0, filled = 0;
-      const cv::Point off = inner.tl() - region.tl();
-      for (int j = 0; j < inner.height; ++j) {
-        for (int i = 0; i < inner.width; ++i) {
-          if (std::isnan(z.at<float>(j + off.y, i + off.x))) continue;
-          const bool owned = owner.at<int>(j + off.y, i + off.x) >= 0;
-          // The fraction drawn counts the cells where the surface has data
-          // of its own (not the holes filled for drawing).
-          const int sx = static_cast<int>(std::floor((grid.X(inner.x + i) - surface_in.geotransform[0]) / surface_in.geotransform[1]));
-          const int sy = static_cast<int>(std::floor((grid.Y(inner.y + j) - surface_in.geotransform[3]) / surface_in.geotransform[5]));
-          if (sx >= 0 && sy >= 0 && sx < surface_in.width && sy < surface_in.height && surface_in.at(sx, sy) != nd) {
-            ++with_surface;
-            filled += owned;
-          }
-          if (!owned) continue;
-          const cv::Vec3b bgr = blended.at<cv::Vec3b>(j + off.y, i + off.x);
-          rgba.at<cv::Vec4b>(j, i) = cv::Vec4b(bgr[2], bgr[1], bgr[0], 255);
-        }
-      }
-      cells_surface += with_surface;
-      cells_filled += filled;
-    }
-    {
-      std::lock_guard<std::mutex> lock(write_mutex);
-      int bands[4] = {1, 2, 3, 4};
-      if (out->RasterIO(GF_Write, inner.x, inner.y - band_y, inner.width, inner.height, rgba.data, inner.width,
-                        inner.height,
-                        GDT_Byte, 4, bands, 4, static_cast<GSpacing>(rgba.step), 1, nullptr) != CE_None) {
-        throw IoError(build.string(), std::string("cannot write a tile: ") + CPLGetLastErrorMsg());
-      }
-      const int done = ++tiles_done;
-      if (!ReportProgress(progress, 0.35 + 0.55 * done / tiles,
-                          "orthomosaic: tile " + std::to_string(done) + "/" + std::to_string(tiles))) {
-        throw InvalidArgument("orthomosaic: cancelled");
-      }
+    const int done = ++tiles_done;
+    if (!ReportProgress(progress, 0.35 + 0.55 * done / band.tiles,
+                        "orthomosaic: tile " + std::to_string(done) + "/" + std::to_string(band.tiles))) {
+      throw InvalidArgument("orthomosaic: cancelled");
     }
   });
   out->FlushCache();
@@ -729,15 +877,15 @@ void WriteOrthomosaic(const SparseModel& model, const std::function<cv::Mat(int 
   if (summary) {
     summary->width = grid.width;
     summary->height = grid.height;
-    summary->tiles = static_cast<int>(tiles);
+    summary->tiles = static_cast<int>(band.tiles);
     summary->images_used = static_cast<int>(images.size());
     summary->images = images;
     summary->cells_with_surface = cells_surface;
     summary->cells_filled = cells_filled;
     summary->filled_fraction = cells_surface > 0 ? static_cast<double>(cells_filled) / cells_surface : 0.0;
     summary->surface_cells_interpolated = interpolated;
-    summary->band_y = band_y;
-    summary->band_height = band_height;
+    summary->band_y = band.band_y;
+    summary->band_height = band.band_height;
   }
   if (o.share_count > 1) {  // a share's band, for AssembleOrthomosaic
     std::filesystem::rename(build, path);

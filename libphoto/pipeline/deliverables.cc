@@ -798,39 +798,151 @@ bool RunDenseShare(const PipelineOptions& o) {
 
 }  // namespace
 
+namespace {
+
+// Whether the dense products stand as made under these options: false with
+// *why when an option changed or a product was damaged since it was written
+// (the stage reruns), true when done already.
+bool DenseProductsCurrent(const PipelineOptions& o, std::string* why, bool* damaged_out) {
+  const json recorded =
+      fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense") : json::object();
+  const std::string changed = FingerprintChanges(recorded.value("options", json()), DenseFingerprint(o));
+  // A product whose size is not the one recorded when it was written has
+  // been damaged since (truncated copy, disk error): rebuild, never read it.
+  std::string damaged;
+  const json file_bytes = recorded.value("file_bytes", json::object());  // items() needs it alive
+  for (const auto& [name, bytes] : file_bytes.items()) {
+    std::error_code ec;
+    const auto size = fs::file_size(o.workspace / name, ec);
+    if (ec || !bytes.is_number() || size != bytes.get<std::uintmax_t>()) {
+      damaged += (damaged.empty() ? "" : ", ") + (o.workspace / name).string() + " (" +
+                 (ec ? std::string("unreadable") : std::to_string(size)) + " bytes, " + bytes.dump() + " written)";
+    }
+  }
+  *damaged_out = !damaged.empty();
+  if (!damaged.empty()) {
+    *why = damaged;
+    return false;
+  }
+  *why = changed;
+  return changed.empty();
+}
+
+// The cloud products' options: DSM, ground classes and the deliverable CRS.
+CloudProductOptions CloudProductOptionsOf(const PipelineOptions& o, const GeoFrame& deliverable, bool classify) {
+  CloudProductOptions products;
+  products.dsm.fill_max_distance_m = o.dsm_fill_m;
+  products.dsm.work_dir = o.workspace;  // GDAL work files stay in the workspace
+  products.classify = classify;
+  products.ground.cell_m = o.ground_cell_m;
+  products.ground.max_window_m = o.ground_window_m;
+  products.ground.slope = o.ground_slope;
+  products.ground.elevation_threshold_m = o.ground_threshold_m;
+  products.threads = Threads(o);
+  products.las_wkt = deliverable.crs.WktV1();
+  products.raster_wkt = deliverable.crs.Wkt();
+  products.crs_name = deliverable.crs.Name();
+  return products;
+}
+
+// The shares' fused points, in share order: the cloud one fusion gives.
+void ReadFusedShares(const PipelineOptions& o, const ProgressCallback& dense_progress, DenseSummary* summary_out,
+                     const std::function<void(const std::vector<Eigen::Vector3d>&,
+                                              const std::vector<std::array<std::uint8_t, 3>>&, double)>& add) {
+  DenseSummary& summary = *summary_out;
+  const std::vector<json> depth = ShareRecords(o, "depth", "--depth-share");
+  const std::vector<json> fused = ShareRecords(o, "fused", "--fuse-share");
+  for (const json& r : depth) {
+    summary.pairs += r.value("pairs", 0);
+    summary.pairs_failed += r.value("pairs_failed", 0);
+    summary.depth_points += r.value("depth_points", 0LL);
+  }
+  std::uint64_t total = 0;
+  for (const json& r : fused) total += r.value("points", std::uint64_t{0});
+  std::uint64_t read = 0;
+  for (int k = 0; k < o.dense_shares; ++k) {
+    const json& r = fused[k];
+    summary.tiles += r.value("tiles", 0);
+    summary.resolution_m = r.value("resolution_m", 0.0);
+    const std::uint64_t n = r.value("points", std::uint64_t{0});
+    ReadFusedPoints(ShareFile(o, "fused", k, ".pts"), n, std::size_t{1} << 20,
+                    [&](const std::vector<Eigen::Vector3d>& xyz, const std::vector<std::array<std::uint8_t, 3>>& rgb) {
+                      add(xyz, rgb, summary.resolution_m);
+                      read += xyz.size();
+                      ReportProgress(ProgressPart(dense_progress, 0.0, 0.8),
+                                     total > 0 ? static_cast<double>(read) / total : 1.0,
+                                     "fused shares: " + std::to_string(read) + " of " + std::to_string(total) +
+                                         " points");
+                    });
+    summary.fused_points += static_cast<long long>(n);
+  }
+}
+
+// The DTM and contours from the ground points (where ground was classified),
+// with their figures for dense.json.
+void WriteTerrainProducts(const PipelineOptions& o, const CloudProducts& made, const CloudProductOptions& products,
+                          const std::string& status, const std::string& heights, bool classify, json* dtm_info_out,
+                          json* contour_info_out, json* ground_info_out) {
+  const fs::path dtm = o.workspace / "dtm.tif", contours = o.workspace / "contours.gpkg";
+  json& dtm_info = *dtm_info_out;
+  json& contour_info = *contour_info_out;
+  json& ground_info = *ground_info_out;
+  const GroundFilterSummary& ground = made.ground;
+  const GroundFilterOptions& gf = products.ground;
+  if (made.has_dtm) {
+    const DtmSummary& dtm_summary = made.dtm_summary;
+    const Raster& dtm_raster = made.dtm;
+    RasterWriteOptions w;
+    w.cog = o.cog;
+    if (!status.empty()) w.metadata["AEROTRI_SURVEY_STATUS"] = status;
+    w.metadata["AEROTRI_HEIGHTS"] = heights;
+    w.metadata["AEROTRI_SURFACE"] = "bare earth: ground points (SMRF), interpolated under objects";
+    WriteRaster(dtm_raster, dtm, w);
+    const double cells = static_cast<double>(dtm_raster.width) * dtm_raster.height;
+    dtm_info = {{"file", "dtm.tif"},
+                {"cells_ground", dtm_summary.cells_ground},
+                {"cells_interpolated", dtm_summary.cells_interpolated},
+                {"interpolated_fraction", cells > 0 ? dtm_summary.cells_interpolated / cells : 0.0}};
+    ContourOptions co;
+    co.interval_m = o.contour_interval_m;
+    ContourSummary cs;
+    WriteContours(dtm_raster, contours, co, &cs);
+    contour_info = {{"file", "contours.gpkg"},     {"interval_m", cs.interval_m},
+                    {"index_every", co.index_every}, {"smoothing_sigma_m", cs.smoothing_sigma_m},
+                    {"lines", cs.lines},           {"dropped_short", cs.dropped_short}};
+    ground_info = {{"method", "SMRF (Pingel et al. 2013)"},
+                   {"cell_m", gf.cell_m},
+                   {"window_m", gf.max_window_m},
+                   {"slope", gf.slope},
+                   {"threshold_m", gf.elevation_threshold_m},
+                   {"ground", ground.ground},
+                   {"above_ground", ground.above},
+                   {"noise", ground.noise}};
+  } else {
+    for (const fs::path& stale : {dtm, contours}) fs::remove(stale);
+    Log(o, classify ? "warning: dense: no ground points; no DTM or contours"
+                    : "warning: dense: ground filtering needs a projected CRS; no DTM or contours");
+  }
+}
+
+}  // namespace
+
 bool RunDenseStage(const PipelineOptions& o) {
   if (o.dense_step == DenseStep::kDepthShare || o.dense_step == DenseStep::kFuseShare) return RunDenseShare(o);
   const fs::path las = o.workspace / "cloud.las", ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
   const fs::path dtm = o.workspace / "dtm.tif", contours = o.workspace / "contours.gpkg";
   bool rerun = o.force;
   if (fs::exists(las) && fs::exists(ply) && fs::exists(dsm) && fs::exists(dtm) && fs::exists(contours) && !o.force) {
-    const json recorded =
-        fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense") : json::object();
-    const std::string changed = FingerprintChanges(recorded.value("options", json()), DenseFingerprint(o));
-    // A product whose size is not the one recorded when it was written has
-    // been damaged since (truncated copy, disk error): rebuild, never read it.
-    std::string damaged;
-    const json file_bytes = recorded.value("file_bytes", json::object());  // items() needs it alive
-    for (const auto& [name, bytes] : file_bytes.items()) {
-      std::error_code ec;
-      const auto size = fs::file_size(o.workspace / name, ec);
-      if (ec || !bytes.is_number() || size != bytes.get<std::uintmax_t>()) {
-        damaged += (damaged.empty() ? "" : ", ") + (o.workspace / name).string() + " (" +
-                   (ec ? std::string("unreadable") : std::to_string(size)) + " bytes, " + bytes.dump() + " written)";
-      }
-    }
-    if (!damaged.empty()) {
-      Log(o, "warning: dense: damaged since it was written: " + damaged + "; rebuilding the dense products");
-      rerun = true;
-    } else if (changed.empty()) {
+    std::string why;
+    bool damaged = false;
+    if (DenseProductsCurrent(o, &why, &damaged)) {
       Log(o, "dense: done already (" + las.string() + ")");
       RemoveDepthMaps(o);  // a run killed between the products and the removal
       return false;
     }
-    if (!rerun) {
-      Log(o, "dense: options changed (" + changed + "): rerunning");
-      rerun = true;
-    }
+    Log(o, damaged ? "warning: dense: damaged since it was written: " + why + "; rebuilding the dense products"
+                   : "dense: options changed (" + why + "): rerunning");
+    rerun = true;
   }
   const auto start = BeginStage();
   const bool from_shares = o.dense_step == DenseStep::kFromShares;
@@ -848,18 +960,7 @@ bool RunDenseStage(const PipelineOptions& o) {
   std::string heights;
   const GeoFrame deliverable{g.frame, DeliverableCrs(g, o, &heights)};
   const bool classify = !deliverable.crs.IsGeographic() && !deliverable.crs.IsGeocentric();
-  CloudProductOptions products;
-  products.dsm.fill_max_distance_m = o.dsm_fill_m;
-  products.dsm.work_dir = o.workspace;  // GDAL work files stay in the workspace
-  products.classify = classify;
-  products.ground.cell_m = o.ground_cell_m;
-  products.ground.max_window_m = o.ground_window_m;
-  products.ground.slope = o.ground_slope;
-  products.ground.elevation_threshold_m = o.ground_threshold_m;
-  products.threads = Threads(o);
-  products.las_wkt = deliverable.crs.WktV1();
-  products.raster_wkt = deliverable.crs.Wkt();
-  products.crs_name = deliverable.crs.Name();
+  CloudProductOptions products = CloudProductOptionsOf(o, deliverable, classify);
   const ProgressCallback dense_progress = StageProgress(o, "dense");  // one clock for the stage's phases
   std::unique_ptr<TiledCloud> tiles;  // made with the first fused tile, which gives the resolution
   FusedTileSink sink;
@@ -879,33 +980,7 @@ bool RunDenseStage(const PipelineOptions& o) {
     tiles->Add(xyz, rgb);
   };
   if (from_shares) {
-    // The shares' fused points, in share order: the cloud one fusion gives.
-    const std::vector<json> depth = ShareRecords(o, "depth", "--depth-share");
-    const std::vector<json> fused = ShareRecords(o, "fused", "--fuse-share");
-    for (const json& r : depth) {
-      summary.pairs += r.value("pairs", 0);
-      summary.pairs_failed += r.value("pairs_failed", 0);
-      summary.depth_points += r.value("depth_points", 0LL);
-    }
-    std::uint64_t total = 0;
-    for (const json& r : fused) total += r.value("points", std::uint64_t{0});
-    std::uint64_t read = 0;
-    for (int k = 0; k < o.dense_shares; ++k) {
-      const json& r = fused[k];
-      summary.tiles += r.value("tiles", 0);
-      summary.resolution_m = r.value("resolution_m", 0.0);
-      const std::uint64_t n = r.value("points", std::uint64_t{0});
-      ReadFusedPoints(ShareFile(o, "fused", k, ".pts"), n, std::size_t{1} << 20,
-                      [&](const std::vector<Eigen::Vector3d>& xyz, const std::vector<std::array<std::uint8_t, 3>>& rgb) {
-                        add(xyz, rgb, summary.resolution_m);
-                        read += xyz.size();
-                        ReportProgress(ProgressPart(dense_progress, 0.0, 0.8),
-                                       total > 0 ? static_cast<double>(read) / total : 1.0,
-                                       "fused shares: " + std::to_string(read) + " of " + std::to_string(total) +
-                                           " points");
-                      });
-      summary.fused_points += static_cast<long long>(n);
-    }
+    ReadFusedShares(o, dense_progress, &summary, add);
   } else {
     const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
     const IngestView ingest = LoadIngest(o);
@@ -954,46 +1029,11 @@ bool RunDenseStage(const PipelineOptions& o) {
   CloudProducts made = WriteCloudProducts(*tiles, las, ply, products, ProgressPart(dense_progress, 0.8, 1.0));
   tiles->Remove();
   tiles.reset();
-  const GroundFilterSummary& ground = made.ground;
-  const GroundFilterOptions& gf = products.ground;
   json dsm_info;
   const std::string status = report.value("status", "");
   WriteDsmRaster(made.dsm, made.dsm_summary, products.dsm.resolution_m, o, status, heights, dsm, &dsm_info);
   json dtm_info = json::object(), contour_info = json::object(), ground_info = json::object();
-  if (made.has_dtm) {
-    const DtmSummary& dtm_summary = made.dtm_summary;
-    const Raster& dtm_raster = made.dtm;
-    RasterWriteOptions w;
-    w.cog = o.cog;
-    if (!status.empty()) w.metadata["AEROTRI_SURVEY_STATUS"] = status;
-    w.metadata["AEROTRI_HEIGHTS"] = heights;
-    w.metadata["AEROTRI_SURFACE"] = "bare earth: ground points (SMRF), interpolated under objects";
-    WriteRaster(dtm_raster, dtm, w);
-    const double cells = static_cast<double>(dtm_raster.width) * dtm_raster.height;
-    dtm_info = {{"file", "dtm.tif"},
-                {"cells_ground", dtm_summary.cells_ground},
-                {"cells_interpolated", dtm_summary.cells_interpolated},
-                {"interpolated_fraction", cells > 0 ? dtm_summary.cells_interpolated / cells : 0.0}};
-    ContourOptions co;
-    co.interval_m = o.contour_interval_m;
-    ContourSummary cs;
-    WriteContours(dtm_raster, contours, co, &cs);
-    contour_info = {{"file", "contours.gpkg"},     {"interval_m", cs.interval_m},
-                    {"index_every", co.index_every}, {"smoothing_sigma_m", cs.smoothing_sigma_m},
-                    {"lines", cs.lines},           {"dropped_short", cs.dropped_short}};
-    ground_info = {{"method", "SMRF (Pingel et al. 2013)"},
-                   {"cell_m", gf.cell_m},
-                   {"window_m", gf.max_window_m},
-                   {"slope", gf.slope},
-                   {"threshold_m", gf.elevation_threshold_m},
-                   {"ground", ground.ground},
-                   {"above_ground", ground.above},
-                   {"noise", ground.noise}};
-  } else {
-    for (const fs::path& stale : {dtm, contours}) fs::remove(stale);
-    Log(o, classify ? "warning: dense: no ground points; no DTM or contours"
-                    : "warning: dense: ground filtering needs a projected CRS; no DTM or contours");
-  }
+  WriteTerrainProducts(o, made, products, status, heights, classify, &dtm_info, &contour_info, &ground_info);
   json file_bytes = {{"cloud.las", fs::file_size(las)}, {"cloud.ply", fs::file_size(ply)},
                      {"dsm.tif", fs::file_size(dsm)}};
   if (fs::exists(dtm)) file_bytes["dtm.tif"] = fs::file_size(dtm);
@@ -1090,6 +1130,110 @@ bool RunReportStage(const PipelineOptions& o) {
   return true;
 }
 
+namespace {
+
+// A workflow's bands: OUTPUT/ortho_parts/band_K_of_N.tif and .json.
+fs::path OrthoBandFile(const PipelineOptions& o, int k, const char* ext) {
+  return o.workspace / "ortho_parts" / ("band_" + std::to_string(k + 1) + "_of_" + std::to_string(o.ortho_shares) + ext);
+}
+
+// A band's record when it was drawn from this surface and model under these options.
+std::optional<json> CurrentOrthoBand(const PipelineOptions& o, int k, const json& fingerprint) {
+  if (!fs::exists(OrthoBandFile(o, k, ".json"))) return std::nullopt;
+  json r = ReadJson(OrthoBandFile(o, k, ".json"), "ortho");
+  if (!FingerprintChanges(r.value("options", json()), fingerprint).empty()) return std::nullopt;
+  return r;
+}
+
+// The orthomosaic's options: resolution (the cloud's, else asked), output
+// format, and the survey's status in its metadata.
+OrthoOptions OrthoOptionsOf(const PipelineOptions& o, const json& dense, const json& report,
+                            const std::string& surface_name) {
+  OrthoOptions oo;
+  oo.resolution_m = o.ortho_resolution_m > 0 ? o.ortho_resolution_m
+                                             : std::max(0.005, std::round(dense.value("resolution_m", 0.1) * 1000.0) / 1000.0);
+  oo.compress = o.ortho_compress;
+  oo.cog = o.ortho_cog;
+  oo.num_threads = o.num_threads;
+  oo.work_dir = o.workspace;
+  oo.metadata["AEROTRI_SURFACE"] = surface_name;
+  if (!report.value("status", "").empty()) oo.metadata["AEROTRI_SURVEY_STATUS"] = report.value("status", "");
+  return oo;
+}
+
+// One band of the workflow's orthomosaic, with its record; the deliverable
+// is the last job's.
+void DrawOrthoBand(const PipelineOptions& o, const SparseModel& model, const std::function<cv::Mat(int)>& load,
+                   const Raster& surface, const CrsToWorldFactory& to_world, OrthoOptions oo, const json& fingerprint,
+                   Clock::time_point start) {
+  const fs::path record = o.workspace / "ortho.json";
+  OrthoSummary summary;
+  fs::remove(record);
+  fs::remove(o.workspace / "report.html");
+  fs::create_directories(o.workspace / "ortho_parts");
+  const int k = o.ortho_share;
+  oo.share_index = k;
+  oo.share_count = o.ortho_shares;
+  fs::remove(OrthoBandFile(o, k, ".tif"));
+  WriteOrthomosaic(model, load, surface, to_world, oo, OrthoBandFile(o, k, ".tif"), StageProgress(o, "ortho"),
+                   &summary);
+  json images = json::array();
+  for (int i : summary.images) images.push_back(model.images[i].name);
+  const json band = {{"share", k + 1},
+                     {"shares", o.ortho_shares},
+                     {"band", summary.band_height > 0},
+                     {"band_y", summary.band_y},
+                     {"band_height", summary.band_height},
+                     {"width", summary.width},
+                     {"height", summary.height},
+                     {"images", images},
+                     {"cells_with_surface", summary.cells_with_surface},
+                     {"cells_filled", summary.cells_filled},
+                     {"surface_cells_interpolated", summary.surface_cells_interpolated},
+                     {"resolution_m", oo.resolution_m},
+                     {"wall_s", std::chrono::duration<double>(Clock::now() - start).count()},
+                     {"peak_rss_mb", PeakRssMb()},
+                     {"options", fingerprint}};
+  WriteTextFileAtomically(OrthoBandFile(o, k, ".json"), band.dump(2) + "\n");
+  Log(o, "ortho: band " + std::to_string(k + 1) + " of " + std::to_string(o.ortho_shares) + ": " +
+             std::to_string(summary.band_height) + " rows from " + std::to_string(summary.images.size()) +
+             " photos");
+}
+
+// The bands, in order, joined into the deliverable; every one drawn from
+// this surface and model.
+void JoinOrthoBands(const PipelineOptions& o, const json& fingerprint, const OrthoOptions& oo, const fs::path& path,
+                    OrthoSummary* summary_out) {
+  OrthoSummary& summary = *summary_out;
+  std::vector<fs::path> bands;
+  std::set<std::string> images;
+  for (int k = 0; k < o.ortho_shares; ++k) {
+    const std::optional<json> r = CurrentOrthoBand(o, k, fingerprint);
+    if (!r) {
+      throw InvalidArgument(OrthoBandFile(o, k, ".json").string() +
+                            (fs::exists(OrthoBandFile(o, k, ".json")) ? ": drawn from another surface, model or options"
+                                                                      : ": missing") +
+                            "; run aerotri ortho -o " + o.workspace.string() + " --band-share " +
+                            std::to_string(k + 1) + "/" + std::to_string(o.ortho_shares) + " first");
+    }
+    if (r->value("band", false)) bands.push_back(OrthoBandFile(o, k, ".tif"));
+    for (const auto& name : r->value("images", json::array())) images.insert(name.get<std::string>());
+    summary.width = r->value("width", 0);
+    summary.height = r->value("height", 0);
+    summary.cells_with_surface += r->value("cells_with_surface", 0LL);
+    summary.cells_filled += r->value("cells_filled", 0LL);
+    summary.surface_cells_interpolated = r->value("surface_cells_interpolated", 0LL);
+  }
+  summary.images_used = static_cast<int>(images.size());
+  summary.filled_fraction = summary.cells_with_surface > 0
+                                ? static_cast<double>(summary.cells_filled) / summary.cells_with_surface
+                                : 0.0;
+  ReportProgress(StageProgress(o, "ortho"), 0.0, "orthomosaic: joining " + std::to_string(bands.size()) + " bands");
+  AssembleOrthomosaic(bands, oo, path);
+}
+
+}  // namespace
+
 bool RunOrthoStage(const PipelineOptions& o) {
   const fs::path path = o.workspace / "ortho.tif", record = o.workspace / "ortho.json";
   if (!o.ortho) {
@@ -1123,21 +1267,9 @@ bool RunOrthoStage(const PipelineOptions& o) {
   }
   using OrthoStep = PipelineOptions::OrthoStep;
   const bool band_step = o.ortho_step == OrthoStep::kBandShare, from_shares = o.ortho_step == OrthoStep::kFromShares;
-  // A workflow's bands: OUTPUT/ortho_parts/band_K_of_N.tif and .json.
-  const auto band_file = [&](int k, const char* ext) {
-    return o.workspace / "ortho_parts" /
-           ("band_" + std::to_string(k + 1) + "_of_" + std::to_string(o.ortho_shares) + ext);
-  };
-  // A band's record when it was drawn from this surface and model under these options.
-  const auto current_band = [&](int k) -> std::optional<json> {
-    if (!fs::exists(band_file(k, ".json"))) return std::nullopt;
-    json r = ReadJson(band_file(k, ".json"), "ortho");
-    if (!FingerprintChanges(r.value("options", json()), fingerprint).empty()) return std::nullopt;
-    return r;
-  };
-  if (band_step && !o.force && current_band(o.ortho_share)) {
+  if (band_step && !o.force && CurrentOrthoBand(o, o.ortho_share, fingerprint)) {
     Log(o, "ortho: band " + std::to_string(o.ortho_share + 1) + " of " + std::to_string(o.ortho_shares) +
-               ": done already (" + band_file(o.ortho_share, ".json").string() + ")");
+               ": done already (" + OrthoBandFile(o, o.ortho_share, ".json").string() + ")");
     return false;
   }
   const auto start = BeginStage();
@@ -1153,15 +1285,7 @@ bool RunOrthoStage(const PipelineOptions& o) {
   const fs::path images_dir = ingest.ImagesDir(o);
   const int max_dimension = ingest.record.working_max_dimension;
   const Raster surface = ReadRaster(surface_path);
-  OrthoOptions oo;
-  oo.resolution_m = o.ortho_resolution_m > 0 ? o.ortho_resolution_m
-                                             : std::max(0.005, std::round(dense.value("resolution_m", 0.1) * 1000.0) / 1000.0);
-  oo.compress = o.ortho_compress;
-  oo.cog = o.ortho_cog;
-  oo.num_threads = o.num_threads;
-  oo.work_dir = o.workspace;
-  oo.metadata["AEROTRI_SURFACE"] = surface_name;
-  if (!report.value("status", "").empty()) oo.metadata["AEROTRI_SURVEY_STATUS"] = report.value("status", "");
+  OrthoOptions oo = OrthoOptionsOf(o, dense, report, surface_name);
   const std::string definition = deliverable.crs.definition();
   const LocalFrame frame = deliverable.frame;
   const CrsToWorldFactory to_world = [definition, frame]() -> CrsToWorld {
@@ -1169,72 +1293,17 @@ bool RunOrthoStage(const PipelineOptions& o) {
     return [crs, frame](const Eigen::Vector3d& xyz) { return frame.EnuFromGeodetic(crs->ToGeodetic(xyz)); };
   };
   OrthoSummary summary;
+  const std::function<cv::Mat(int)> load = [&](int i) {
+    return LoadWorkingImage(images_dir / model.images[i].name, max_dimension);
+  };
   if (band_step) {
-    // One band of the workflow's orthomosaic; the deliverable is the last job's.
-    fs::remove(record);
-    fs::remove(o.workspace / "report.html");
-    fs::create_directories(o.workspace / "ortho_parts");
-    const int k = o.ortho_share;
-    oo.share_index = k;
-    oo.share_count = o.ortho_shares;
-    fs::remove(band_file(k, ".tif"));
-    WriteOrthomosaic(
-        model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, surface,
-        to_world, oo, band_file(k, ".tif"), StageProgress(o, "ortho"), &summary);
-    json images = json::array();
-    for (int i : summary.images) images.push_back(model.images[i].name);
-    const json band = {{"share", k + 1},
-                       {"shares", o.ortho_shares},
-                       {"band", summary.band_height > 0},
-                       {"band_y", summary.band_y},
-                       {"band_height", summary.band_height},
-                       {"width", summary.width},
-                       {"height", summary.height},
-                       {"images", images},
-                       {"cells_with_surface", summary.cells_with_surface},
-                       {"cells_filled", summary.cells_filled},
-                       {"surface_cells_interpolated", summary.surface_cells_interpolated},
-                       {"resolution_m", oo.resolution_m},
-                       {"wall_s", std::chrono::duration<double>(Clock::now() - start).count()},
-                       {"peak_rss_mb", PeakRssMb()},
-                       {"options", fingerprint}};
-    WriteTextFileAtomically(band_file(k, ".json"), band.dump(2) + "\n");
-    Log(o, "ortho: band " + std::to_string(k + 1) + " of " + std::to_string(o.ortho_shares) + ": " +
-               std::to_string(summary.band_height) + " rows from " + std::to_string(summary.images.size()) +
-               " photos");
+    DrawOrthoBand(o, model, load, surface, to_world, oo, fingerprint, start);
     return true;
   }
   if (from_shares) {
-    // The bands, in order; every one drawn from this surface and model.
-    std::vector<fs::path> bands;
-    std::set<std::string> images;
-    for (int k = 0; k < o.ortho_shares; ++k) {
-      const std::optional<json> r = current_band(k);
-      if (!r) {
-        throw InvalidArgument(band_file(k, ".json").string() +
-                              (fs::exists(band_file(k, ".json")) ? ": drawn from another surface, model or options"
-                                                                 : ": missing") +
-                              "; run aerotri ortho -o " + o.workspace.string() + " --band-share " +
-                              std::to_string(k + 1) + "/" + std::to_string(o.ortho_shares) + " first");
-      }
-      if (r->value("band", false)) bands.push_back(band_file(k, ".tif"));
-      for (const auto& name : r->value("images", json::array())) images.insert(name.get<std::string>());
-      summary.width = r->value("width", 0);
-      summary.height = r->value("height", 0);
-      summary.cells_with_surface += r->value("cells_with_surface", 0LL);
-      summary.cells_filled += r->value("cells_filled", 0LL);
-      summary.surface_cells_interpolated = r->value("surface_cells_interpolated", 0LL);
-    }
-    summary.images_used = static_cast<int>(images.size());
-    summary.filled_fraction = summary.cells_with_surface > 0
-                                  ? static_cast<double>(summary.cells_filled) / summary.cells_with_surface
-                                  : 0.0;
-    ReportProgress(StageProgress(o, "ortho"), 0.0, "orthomosaic: joining " + std::to_string(bands.size()) + " bands");
-    AssembleOrthomosaic(bands, oo, path);
+    JoinOrthoBands(o, fingerprint, oo, path, &summary);
   } else {
-    WriteOrthomosaic(
-        model, [&](int i) { return LoadWorkingImage(images_dir / model.images[i].name, max_dimension); }, surface,
-        to_world, oo, path, StageProgress(o, "ortho"), &summary);
+    WriteOrthomosaic(model, load, surface, to_world, oo, path, StageProgress(o, "ortho"), &summary);
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const json out = {{"ortho",
@@ -1256,7 +1325,7 @@ bool RunOrthoStage(const PipelineOptions& o) {
                     {"file_bytes", {{"ortho.tif", fs::file_size(path)}}}};
   WriteTextFileAtomically(record, out.dump(2) + "\n");
   if (from_shares) {
-    for (int k = 0; k < o.ortho_shares; ++k) fs::remove(band_file(k, ".tif"));  // in ortho.tif now
+    for (int k = 0; k < o.ortho_shares; ++k) fs::remove(OrthoBandFile(o, k, ".tif"));  // in ortho.tif now
   }
   fs::remove(o.workspace / "report.html");  // the report shows the ortho: it reruns
   Log(o, "ortho: " + std::to_string(summary.width) + " x " + std::to_string(summary.height) + " at " +

@@ -309,6 +309,128 @@ GeoreferenceOptions GeoreferenceStageOptions(const PipelineOptions& o, const Ing
   return go;
 }
 
+namespace {
+
+// Every photo of the survey: registered or why not, its reprojection error
+// and whether it has GPS; *registered counts the registered ones.
+json ImagesJson(const SparseModel& model, const ReconstructionRecord& recon, const IngestView& ingest,
+                int* registered_out) {
+  std::map<std::string, int> index_of_name;
+  for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
+  std::map<std::string, std::pair<double, int>> image_error;
+  {
+    const std::vector<double> errors = ReprojectionErrors(model);
+    for (size_t k = 0; k < errors.size(); ++k) {
+      const Observation& obs = model.observations[k];
+      if (model.points[obs.point].role != PointRole::kTie || !std::isfinite(errors[k])) continue;
+      auto& e = image_error[model.images[obs.image].name];
+      e.first += errors[k] * errors[k];
+      ++e.second;
+    }
+  }
+  json images = json::array();
+  int& registered = *registered_out;
+  registered = 0;
+  for (const ReconstructionRecord::Image& im : recon.images) {
+    json entry = {{"name", im.name}, {"registered", im.registered}};
+    if (!im.registered) entry["why_not"] = im.why_not;
+    if (im.registered && im.component >= 0) entry["component"] = im.component;
+    if (const auto e = image_error.find(im.name); e != image_error.end() && e->second.second > 0) {
+      entry["reprojection_rms_px"] = std::sqrt(e->second.first / e->second.second);
+      entry["observations"] = e->second.second;
+    }
+    const auto it = index_of_name.find(im.name);
+    entry["gps"] = it != index_of_name.end() && ingest.gps[it->second].has_value();
+    registered += im.registered ? 1 : 0;
+    images.push_back(entry);
+  }
+  return images;
+}
+
+// The intrinsics in millimetres beside the pixels: the pixel pitch from EXIF,
+// or a certificate's (full-resolution pixels: scaled to the group's working
+// pixels), which wins.
+void AddIntrinsicsInMmOf(const PipelineOptions& o, const IngestView& ingest, json* report) {
+  std::vector<double> pixel_size_mm;  // camera id k is group k - 1
+  for (const CameraGroup& g : ingest.record.groups) pixel_size_mm.push_back(g.pixel_size_mm);
+  // A certificate's pixel pitch wins over EXIF's (full-resolution pixels:
+  // scaled to the group's working pixels).
+  std::string source = "EXIF";
+  if (!o.camera_file.empty()) {
+    const CameraFile certificate = ReadCameraFile(o.camera_file);
+    if (certificate.pixel_size_mm > 0.0) {
+      source = "the camera file";
+      for (const IngestedImage& im : ingest.record.images) {
+        if (im.group >= 0 && im.group < static_cast<int>(pixel_size_mm.size()) && im.working_width > 0) {
+          pixel_size_mm[im.group] = certificate.pixel_size_mm * im.width / im.working_width;
+        }
+      }
+    }
+  }
+  if (report->contains("adjustment")) AddIntrinsicsInMm(&(*report)["adjustment"], pixel_size_mm, source);
+}
+
+// The survey's status: the adjustment's findings, photos left out, input
+// problems met at ingest.
+void SetSurveyStatus(const ReconstructionRecord& recon, const IngestView& ingest, int registered, json* report_out) {
+  json& report = *report_out;
+  std::vector<Finding> findings;
+  std::vector<std::string> unregistered;
+  for (const ReconstructionRecord::Image& im : recon.images) {
+    if (!im.registered) unregistered.push_back(im.name);
+  }
+  if (!unregistered.empty()) {
+    findings.push_back(Finding::Warning(
+        "IMAGES_NOT_REGISTERED",
+        std::to_string(unregistered.size()) + " of " + std::to_string(ingest.names.size()) +
+            " photos are not in the model (report images.per_image says why): " + JoinNames(unregistered),
+        unregistered));
+  }
+  if (recon.component_images.size() > 1) {
+    std::vector<std::string> placed;
+    std::string sizes;
+    for (const ReconstructionRecord::Image& im : recon.images) {
+      if (im.registered && im.component > 0) placed.push_back(im.name);
+    }
+    for (size_t k = 1; k < recon.component_images.size(); ++k) {
+      sizes += (k > 1 ? ", " : "") + std::to_string(recon.component_images[k]);
+    }
+    findings.push_back(Finding::Warning(
+        "MODEL_SPLIT",
+        "the photos form " + std::to_string(recon.component_images.size()) +
+            " groups with no tie points between them: the main one of " +
+            std::to_string(recon.component_images[0]) + " photos, and " + sizes +
+            " placed by their own GPS; across the seams the relative accuracy is the GPS's, not the "
+            "photos' (more overlap, or control in every group, closes them): " + JoinNames(placed),
+        placed));
+  }
+  if (registered < 2) {
+    findings.push_back(Finding::Error(
+        "NOTHING_REGISTERED",
+        std::to_string(registered) + " of " + std::to_string(ingest.names.size()) +
+            " photos could be oriented: a survey needs at least two overlapping photos (report "
+            "images.per_image and matching say why)",
+        unregistered));
+  } else if (!report["georeferenced"].get<bool>()) {
+    findings.push_back(Finding::Warning(
+        "NOT_GEOREFERENCED", "no GPS and no control points: the survey is in an arbitrary frame and scale, "
+                             "with no CRS, cloud or DSM"));
+  }
+  for (const auto& w : report["ingest_warnings"]) findings.push_back(Finding::Warning("INPUT", w.get<std::string>()));
+  const auto append = [&](const char* key, Severity severity) {
+    for (const json& f : report.value(key, json::array())) {
+      findings.push_back({severity, f.at("code"), f.at("message"), f.value("items", std::vector<std::string>{})});
+    }
+  };
+  append("warnings", Severity::kWarning);
+  append("errors", Severity::kError);
+  report["status"] = SurveyStatus(findings);
+  report["warnings"] = FindingsJson(findings, Severity::kWarning);
+  report["errors"] = FindingsJson(findings, Severity::kError);
+}
+
+}  // namespace
+
 bool RunGeoreferenceStage(const PipelineOptions& o) {
   const fs::path report_path = o.workspace / "report.json";
   // georeferenced/ too: what the dense stage reads (and a workflow's
@@ -323,8 +445,6 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   IngestView ingest = LoadIngest(o);
   const ReconstructionRecord recon = LoadReconstructionRecord(o);
   SparseModel model = ReadColmapText(o.workspace / "reconstruction");
-  std::map<std::string, int> index_of_name;
-  for (size_t i = 0; i < ingest.names.size(); ++i) index_of_name[ingest.names[i]] = static_cast<int>(i);
 
   const SurveyAdjustmentInputs inputs = GeoreferenceInputs(o, ingest);
   json report;
@@ -349,33 +469,8 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["gsd_m"] = MedianGsd(model);
   report["pixels"] = "sparse/ holds full-resolution pixels; adjustment figures are at the working "
                      "resolution (longer side " + std::to_string(o.features.max_dimension) + " px)";
-  // Images, with their reprojection error.
-  std::map<std::string, std::pair<double, int>> image_error;
-  {
-    const std::vector<double> errors = ReprojectionErrors(model);
-    for (size_t k = 0; k < errors.size(); ++k) {
-      const Observation& obs = model.observations[k];
-      if (model.points[obs.point].role != PointRole::kTie || !std::isfinite(errors[k])) continue;
-      auto& e = image_error[model.images[obs.image].name];
-      e.first += errors[k] * errors[k];
-      ++e.second;
-    }
-  }
-  json images = json::array();
   int registered = 0;
-  for (const ReconstructionRecord::Image& im : recon.images) {
-    json entry = {{"name", im.name}, {"registered", im.registered}};
-    if (!im.registered) entry["why_not"] = im.why_not;
-    if (im.registered && im.component >= 0) entry["component"] = im.component;
-    if (const auto e = image_error.find(im.name); e != image_error.end() && e->second.second > 0) {
-      entry["reprojection_rms_px"] = std::sqrt(e->second.first / e->second.second);
-      entry["observations"] = e->second.second;
-    }
-    const auto it = index_of_name.find(im.name);
-    entry["gps"] = it != index_of_name.end() && ingest.gps[it->second].has_value();
-    registered += im.registered ? 1 : 0;
-    images.push_back(entry);
-  }
+  const json images = ImagesJson(model, recon, ingest, &registered);
   report["images"] = {{"total", ingest.names.size()}, {"registered", registered}, {"per_image", images}};
   report["reconstruction"] = {{"initial_pair", recon.initial_pair},
                               {"tracks", recon.tracks},
@@ -392,84 +487,10 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["provenance"] = Provenance(o, ingest.record.options);
   const json ingest_doc = ToJson(ingest.record);
   report["camera_groups"] = ingest_doc.at("groups");
-  {
-    std::vector<double> pixel_size_mm;  // camera id k is group k - 1
-    for (const CameraGroup& g : ingest.record.groups) pixel_size_mm.push_back(g.pixel_size_mm);
-    // A certificate's pixel pitch wins over EXIF's (full-resolution pixels:
-    // scaled to the group's working pixels).
-    std::string source = "EXIF";
-    if (!o.camera_file.empty()) {
-      const CameraFile certificate = ReadCameraFile(o.camera_file);
-      if (certificate.pixel_size_mm > 0.0) {
-        source = "the camera file";
-        for (const IngestedImage& im : ingest.record.images) {
-          if (im.group >= 0 && im.group < static_cast<int>(pixel_size_mm.size()) && im.working_width > 0) {
-            pixel_size_mm[im.group] = certificate.pixel_size_mm * im.width / im.working_width;
-          }
-        }
-      }
-    }
-    if (report.contains("adjustment")) AddIntrinsicsInMm(&report["adjustment"], pixel_size_mm, source);
-  }
+  AddIntrinsicsInMmOf(o, ingest, &report);
   report["ingest_warnings"] = ingest_doc.at("warnings");
 
-  // The survey's status: the adjustment's findings, photos left out, input
-  // problems met at ingest.
-  {
-    std::vector<Finding> findings;
-    std::vector<std::string> unregistered;
-    for (const ReconstructionRecord::Image& im : recon.images) {
-      if (!im.registered) unregistered.push_back(im.name);
-    }
-    if (!unregistered.empty()) {
-      findings.push_back(Finding::Warning(
-          "IMAGES_NOT_REGISTERED",
-          std::to_string(unregistered.size()) + " of " + std::to_string(ingest.names.size()) +
-              " photos are not in the model (report images.per_image says why): " + JoinNames(unregistered),
-          unregistered));
-    }
-    if (recon.component_images.size() > 1) {
-      std::vector<std::string> placed;
-      std::string sizes;
-      for (const ReconstructionRecord::Image& im : recon.images) {
-        if (im.registered && im.component > 0) placed.push_back(im.name);
-      }
-      for (size_t k = 1; k < recon.component_images.size(); ++k) {
-        sizes += (k > 1 ? ", " : "") + std::to_string(recon.component_images[k]);
-      }
-      findings.push_back(Finding::Warning(
-          "MODEL_SPLIT",
-          "the photos form " + std::to_string(recon.component_images.size()) +
-              " groups with no tie points between them: the main one of " +
-              std::to_string(recon.component_images[0]) + " photos, and " + sizes +
-              " placed by their own GPS; across the seams the relative accuracy is the GPS's, not the "
-              "photos' (more overlap, or control in every group, closes them): " + JoinNames(placed),
-          placed));
-    }
-    if (registered < 2) {
-      findings.push_back(Finding::Error(
-          "NOTHING_REGISTERED",
-          std::to_string(registered) + " of " + std::to_string(ingest.names.size()) +
-              " photos could be oriented: a survey needs at least two overlapping photos (report "
-              "images.per_image and matching say why)",
-          unregistered));
-    } else if (!report["georeferenced"].get<bool>()) {
-      findings.push_back(Finding::Warning(
-          "NOT_GEOREFERENCED", "no GPS and no control points: the survey is in an arbitrary frame and scale, "
-                               "with no CRS, cloud or DSM"));
-    }
-    for (const auto& w : report["ingest_warnings"]) findings.push_back(Finding::Warning("INPUT", w.get<std::string>()));
-    const auto append = [&](const char* key, Severity severity) {
-      for (const json& f : report.value(key, json::array())) {
-        findings.push_back({severity, f.at("code"), f.at("message"), f.value("items", std::vector<std::string>{})});
-      }
-    };
-    append("warnings", Severity::kWarning);
-    append("errors", Severity::kError);
-    report["status"] = SurveyStatus(findings);
-    report["warnings"] = FindingsJson(findings, Severity::kWarning);
-    report["errors"] = FindingsJson(findings, Severity::kError);
-  }
+  SetSurveyStatus(recon, ingest, registered, &report);
 
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
   fs::remove_all(o.workspace / "depth");  // depth maps of an earlier model are stale

@@ -818,12 +818,10 @@ std::string RenderHtmlReport(const json& r, const std::string& hillshade_png) {
   return RenderHtmlReport(r, std::map<std::string, std::string>{{"dsm", hillshade_png}});
 }
 
-std::string RenderHtmlReport(const json& r, const std::map<std::string, std::string>& previews) {
-  const auto png_of = [&](const char* key) {
-    const auto it = previews.find(key);
-    return it == previews.end() ? std::string() : it->second;
-  };
-  const std::string hillshade_png = png_of("dsm");  // the DSM preview
+namespace {
+
+// The page head: styles for screen and print.
+std::string HtmlHead() {
   std::ostringstream h;
   h << "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>aerotri survey report</title><style>"
        "body{font-family:sans-serif;margin:2em auto;max-width:1000px;color:#222}"
@@ -842,7 +840,12 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
        "h3{page-break-after:avoid;break-after:avoid}svg,img,table,.cards,p.asprs{page-break-inside:avoid;"
        "break-inside:avoid}svg.chart,svg.map,svg.dsm{max-width:100%}a{color:inherit;text-decoration:none}}"
        "</style></head><body>";
-  h << "<h1>aerotri survey report</h1>";
+  return h.str();
+}
+
+// Who made the report, and the status first: a failed survey must not look like any other.
+std::string StatusSection(const json& r) {
+  std::ostringstream h;
   if (r.contains("provenance") && r["provenance"].is_object()) {
     // Who made it, when, and how: the adjustment's process.
     const json& p = r["provenance"];
@@ -876,6 +879,12 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
     if (num_warnings > 0) h << "<div>" << num_warnings << " warnings: see the end of this report</div>";
     h << "</div>";
   }
+  return h.str();
+}
+
+// The headline figures and the frame.
+std::string SummaryCards(const json& r) {
+  std::ostringstream h;
   const auto& images = r.value("images", json::object());
   const auto& adj = r.value("adjustment", json::object());
   h << "<div class='cards'>"
@@ -897,7 +906,12 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
     << ", lon " << Num(Get(r.value("enu_origin", json::object()), "lon_deg"), 7) << ", h "
     << Num(Get(r.value("enu_origin", json::object()), "h_m"), 2) << " m (WGS84 ellipsoid). Datum: "
     << Escape(Text(adj, "datum", "–")) << ".</p>";
+  return h.str();
+}
 
+// Accuracy: the ASPRS statements, check, control and leave-one-out tables, the DSM at the check points.
+std::string AccuracySection(const json& r) {
+  std::ostringstream h;
   h << "<h2>Accuracy</h2>";
   const int num_checks = r.value("check_points", json::object()).value("count", 0);
   if (num_checks == 0) {
@@ -933,10 +947,13 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
     h << "<tr class='total'><td>RMSE (" << d.value("count", 0) << " points)</td><td>" << Num(Get(d, "rmse_z_m"))
       << "</td></tr></table>";
   }
-  h << AdjustmentStatistics(r);
-  h << AttitudeAndDrift(r) << CameraCalibration(r) << TrackTable(r);
-  h << "<h2>Survey map and residual vectors</h2>" << SurveyMap(r);
+  return h.str();
+}
 
+// Camera positions against GPS, reprojection error per image, overlap and coverage.
+std::string ResidualCharts(const json& r) {
+  std::ostringstream h;
+  const auto& images = r.value("images", json::object());
   std::vector<std::string> names;
   std::vector<double> de, dn, du;
   for (const auto& c : r.value("cameras", json::array())) {
@@ -989,6 +1006,17 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
         << Num(Get(fc, "seen_by_1_m2"), 0) << " m&sup2; more seen by one photo only).</p>";
     }
   }
+  return h.str();
+}
+
+// The elevation model, terrain and orthomosaic previews.
+std::string ElevationSection(const json& r, const std::map<std::string, std::string>& previews) {
+  std::ostringstream h;
+  const auto png_of = [&](const char* key) {
+    const auto it = previews.find(key);
+    return it == previews.end() ? std::string() : it->second;
+  };
+  const std::string hillshade_png = png_of("dsm");  // the DSM preview
   h << "<h2>Elevation model</h2>";
   if (!hillshade_png.empty()) {
     const auto& d = r.value("dsm", json::object());
@@ -1009,6 +1037,13 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
   } else {
     h << "<p>No DSM.</p>";
   }
+  return h.str();
+}
+
+// The images table, timings and the warnings.
+std::string ImagesAndWarnings(const json& r) {
+  std::ostringstream h;
+  const auto& images = r.value("images", json::object());
   const size_t num_images = images.value("per_image", json::array()).size();
   h << "<h2>Images</h2>";
   // A long list stays folded (500 rows would bury what follows); print opens it.
@@ -1034,6 +1069,20 @@ std::string RenderHtmlReport(const json& r, const std::map<std::string, std::str
     for (const auto& w : warnings) h << "<li class='warn'>" << Escape(w) << "</li>";
     h << "</ul>";
   }
+  return h.str();
+}
+
+}  // namespace
+
+std::string RenderHtmlReport(const json& r, const std::map<std::string, std::string>& previews) {
+  std::ostringstream h;
+  h << HtmlHead();
+  h << "<h1>aerotri survey report</h1>";
+  h << StatusSection(r) << SummaryCards(r) << AccuracySection(r);
+  h << AdjustmentStatistics(r);
+  h << AttitudeAndDrift(r) << CameraCalibration(r) << TrackTable(r);
+  h << "<h2>Survey map and residual vectors</h2>" << SurveyMap(r);
+  h << ResidualCharts(r) << ElevationSection(r, previews) << ImagesAndWarnings(r);
   h << "<p style='color:#888;font-size:11px'>generated by aerotri</p></body></html>\n";
   return h.str();
 }

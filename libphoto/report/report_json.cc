@@ -276,29 +276,14 @@ nlohmann::json FindingsJson(const std::vector<Finding>& findings, Severity sever
   return out;
 }
 
-nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseModel& model) {
+namespace {
+
+nlohmann::json Enu(const Eigen::Vector3d& v) { return nlohmann::json{{"e_m", v.x()}, {"n_m", v.y()}, {"u_m", v.z()}}; }
+
+// Every registered camera: its GPS residual, position, angles and sigmas.
+nlohmann::json CamerasJson(const GeoreferenceReport& r) {
   nlohmann::json j;
-  j["crs"] = r.crs;
-  j["crs_name"] = r.crs_name;
-  j["crs_source"] = r.crs_source;
-  j["residual_axes"] = r.axes;
-  if (r.local_origin) j["crs_local_origin"] = {r.local_origin->x(), r.local_origin->y(), r.local_origin->z()};
-  j["enu_origin"] = {{"lat_deg", r.enu_origin.lat_deg},
-                     {"lon_deg", r.enu_origin.lon_deg},
-                     {"h_m", r.enu_origin.h_m},
-                     {"height_reference", "WGS84 ellipsoid"}};
-  j["control_points"] = PointsJson(r.control, r.control_stats, r.residuals_in_crs_units);
-  j["check_points"] = PointsJson(r.check, r.check_stats, r.residuals_in_crs_units);
-  const AsprsStatements check = AsprsStatements::From(r.check_stats);
-  j["asprs"] = {
-      {"based_on", r.check_stats.count > 0 ? "check points" : "no check points"},
-      {"edition_2014",
-       {{"horizontal_accuracy_95_m", check.horizontal_accuracy_95_m},
-        {"nva_95_m", check.nva_95_m},
-        {"note", "horizontal 95% = 1.7308 RMSE_r, NVA 95% = 1.96 RMSE_z"}}},
-      {"edition_2023",
-       {{"rmse_h_m", check.rmse_h_m}, {"rmse_v_m", check.rmse_v_m}, {"rmse_3d_m", check.rmse_3d_m}}}};
-  j["cameras"] = nlohmann::json::array();
+  j = nlohmann::json::array();
   for (const CameraResult& c : r.cameras) {
     nlohmann::json cj;
     cj["name"] = c.name;
@@ -320,23 +305,14 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
       cj["sigma_position_m"] = {c.sigma_position_m.x(), c.sigma_position_m.y(), c.sigma_position_m.z()};
       cj["sigma_omega_phi_kappa_deg"] = {c.sigma_opk_deg.x(), c.sigma_opk_deg.y(), c.sigma_opk_deg.z()};
     }
-    j["cameras"].push_back(cj);
+    j.push_back(cj);
   }
-  j["exterior_orientation"] = {
-      {"position", "camera centre in the output CRS (for a geographic CRS: lon, lat, ellipsoidal h)"},
-      {"angles", "omega, phi, kappa (deg) of R = Rx(omega) Ry(phi) Rz(kappa), the rotation from the photo frame "
-                 "(x right, y up the image, z out of the lens towards the viewer) to the grid axes (easting, "
-                 "northing, up); a nadir photo with its top to the north has 0, 0, 0"},
-      {"sigmas", "posterior standard deviations (scaled by sigma0^2), position on the grid axes"}};
-  j["adjustment"] = BundleSummaryJson(r.bundle, model);
-  for (auto& c : j["adjustment"]["intrinsics"]) {
-    for (const Camera& initial : r.initial_cameras) {
-      if (initial.id != c["camera"].get<int>() || initial.info().name != c["model"].get<std::string>()) continue;
-      nlohmann::json params;
-      for (int i = 0; i < initial.info().num_params(); ++i) params[initial.info().param_names[i]] = initial.params[i];
-      c["initial_params"] = params;
-    }
-  }
+  return j;
+}
+
+// Leave-one-out over the control points.
+void AddLeaveOneOut(const GeoreferenceReport& r, nlohmann::json* out) {
+  nlohmann::json& j = *out;
   {
     const LeaveOneOut& loo = r.leave_one_out;
     if (loo.computed) {
@@ -351,6 +327,11 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
       j["leave_one_out"] = {{"computed", false}, {"note", loo.note.empty() ? "not asked for" : loo.note}};
     }
   }
+}
+
+// The posterior precision and the marks' data snooping.
+void AddPrecision(const GeoreferenceReport& r, nlohmann::json* out) {
+  nlohmann::json& j = *out;
   {
     const BundlePrecision& p = r.bundle.precision;
     nlohmann::json pj;
@@ -397,13 +378,12 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
         {"expected_suspects_without_blunders", 0.001 * r.mark_tests},
         {"marks", marks}};
   }
-  j["adjustment"]["helmert"] = {{"correspondences", r.helmert_correspondences},
-                                {"inliers", r.helmert_inliers},
-                                {"rms_m", r.helmert_rms_m},
-                                {"datum_source", r.datum_source}};
-  auto enu = [](const Eigen::Vector3d& v) {
-    return nlohmann::json{{"e_m", v.x()}, {"n_m", v.y()}, {"u_m", v.z()}};
-  };
+}
+
+// The datum's figures beside the adjustment: control precision, GPS against
+// control, the GNSS drift and the block's attitude.
+void AddDatumAndGnss(const GeoreferenceReport& r, nlohmann::json* out) {
+  nlohmann::json& j = *out;
   const auto& cp = r.control_precision;
   if (cp.measured) {
     j["control_precision"] = {{"note", "control scatter about the model per axis (free network), against the "
@@ -418,9 +398,9 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
     j["gps_vs_control"] = {{"note", "GPS minus the camera centres of the control-only initial fit"},
                            {"cameras", versus.cameras},
                            {"consistent", versus.consistent},
-                           {"offset", enu(versus.offset_enu_m)},
-                           {"offset_sigma", enu(versus.offset_sigma_m)},
-                           {"rms_after_offset", enu(versus.rms_after_offset_m)},
+                           {"offset", Enu(versus.offset_enu_m)},
+                           {"offset_sigma", Enu(versus.offset_sigma_m)},
+                           {"rms_after_offset", Enu(versus.rms_after_offset_m)},
                            {"significant", versus.significant},
                            {"rejected", versus.rejected}};
   } else {
@@ -432,10 +412,10 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
     for (const GpsDriftReport::Flight& f : d.flights) {
       flights.push_back({{"images", f.images},
                          {"duration_s", f.duration_s},
-                         {"trend_m_per_s", enu(f.trend_m_per_s)},
-                         {"trend_sigma_m_per_s", enu(f.trend_sigma)},
-                         {"rate_m_per_s", enu(f.rate_m_per_s)},
-                         {"rate_sigma_m_per_s", enu(f.rate_sigma)}});
+                         {"trend_m_per_s", Enu(f.trend_m_per_s)},
+                         {"trend_sigma_m_per_s", Enu(f.trend_sigma)},
+                         {"rate_m_per_s", Enu(f.rate_m_per_s)},
+                         {"rate_sigma_m_per_s", Enu(f.rate_sigma)}});
     }
     j["gps_drift"] = {{"note", d.note},
                       {"tested", d.tested},
@@ -473,19 +453,11 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                                                {"yaw_difference_max_deg", g.yaw_max_deg}};
     }
   }
-  const BlockGeometry& g = r.geometry;
-  j["adjustment"]["block_geometry"] = {{"images", g.images},
-                                       {"median_depth_m", g.median_depth_m},
-                                       {"relief_ratio", g.relief_ratio},
-                                       {"roughness_ratio", g.roughness_ratio},
-                                       {"height_variation_ratio", g.height_variation_ratio},
-                                       {"tilt_p90_deg", g.tilt_p90_deg},
-                                       {"gsd_m", g.gsd_m},
-                                       {"gps_sigma_v_m", g.gps_sigma_v_m}};
-  j["adjustment"]["block_geometry"]["nadir_flat_single_altitude"] = g.nadir_flat_single_altitude;
-  j["adjustment"]["refinement"] = {{"policy", r.refinement_auto ? "auto" : "given (--refine)"},
-                                   {"refined", r.refined},
-                                   {"reason", r.refinement_reason}};
+}
+
+// The intrinsics' a-priori precision and correlations per camera group.
+void AddIntrinsicsPrecision(const GeoreferenceReport& r, const SparseModel& model, nlohmann::json* out) {
+  nlohmann::json& j = *out;
   j["adjustment"]["intrinsics_precision"] = nlohmann::json::array();
   for (const IntrinsicsPrecision& p : r.bundle.intrinsics_precision) {
     nlohmann::json pj;
@@ -507,22 +479,17 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
     j["adjustment"]["intrinsics_precision"].push_back(pj);
   }
   if (!r.bundle.covariance_note.empty()) j["adjustment"]["intrinsics_precision_note"] = r.bundle.covariance_note;
-  j["adjustment"]["dome"] = {{"source", r.dome.source},
-                             {"points", r.dome.points},
-                             {"radius_m", r.dome.radius_m},
-                             {"amplitude_m", r.dome.amplitude_m},
-                             {"amplitude_sigma_m", r.dome.amplitude_sigma_m},
-                             {"t", r.dome.t},
-                             {"t_critical", r.dome.t_critical},
-                             {"significant", r.dome.significant},
-                             {"note", "vertical residual at the block's edge minus at its centre (dz = a + b x + c y + amplitude r^2 / R^2); significant: |t| beyond Student's t at points - 4 degrees of freedom, "
-                                      "two-sided 0.27 % (3.0 for many points)"}};
+}
+
+// The GPS offset (one, or per flight) with its sigmas.
+void AddGpsOffset(const GeoreferenceReport& r, nlohmann::json* out) {
+  nlohmann::json& j = *out;
   j["adjustment"]["gps_offset"] = {{"estimated", r.bundle.gps_offset_estimated},
                                    {"note", "GPS minus camera centre, ENU metres"},
-                                   {"offset", enu(r.bundle.gps_offset_m)}};
+                                   {"offset", Enu(r.bundle.gps_offset_m)}};
   if (r.bundle.gps_offset_estimated && r.bundle.precision.has_gps_offset) {
     const Eigen::Matrix3d& c = r.bundle.precision.gps_offset_cov;
-    j["adjustment"]["gps_offset"]["sigma"] = enu(c.diagonal().cwiseMax(0.0).cwiseSqrt());
+    j["adjustment"]["gps_offset"]["sigma"] = Enu(c.diagonal().cwiseMax(0.0).cwiseSqrt());
   }
   // One offset per flight: each with its sigma and photos (the top-level
   // offset is flight 1's).
@@ -533,16 +500,90 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
       if (c.has_prior && c.flight >= 0 && c.flight < static_cast<int>(photos.size())) ++photos[c.flight];
     }
     for (size_t f = 0; f < r.bundle.gps_flight_offsets_m.size(); ++f) {
-      nlohmann::json fj = {{"flight", f + 1}, {"photos", photos[f]}, {"offset", enu(r.bundle.gps_flight_offsets_m[f])}};
+      nlohmann::json fj = {{"flight", f + 1}, {"photos", photos[f]}, {"offset", Enu(r.bundle.gps_flight_offsets_m[f])}};
       const auto& cov = r.bundle.precision.gps_flight_offset_cov;
       if (r.bundle.gps_offset_estimated && f < cov.size()) {
-        fj["sigma"] = enu(cov[f].diagonal().cwiseMax(0.0).cwiseSqrt());
+        fj["sigma"] = Enu(cov[f].diagonal().cwiseMax(0.0).cwiseSqrt());
       }
       flights.push_back(fj);
     }
     j["adjustment"]["gps_offset"]["per_flight"] = true;
     j["adjustment"]["gps_offset"]["flights"] = flights;
   }
+}
+
+}  // namespace
+
+nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseModel& model) {
+  nlohmann::json j;
+  j["crs"] = r.crs;
+  j["crs_name"] = r.crs_name;
+  j["crs_source"] = r.crs_source;
+  j["residual_axes"] = r.axes;
+  if (r.local_origin) j["crs_local_origin"] = {r.local_origin->x(), r.local_origin->y(), r.local_origin->z()};
+  j["enu_origin"] = {{"lat_deg", r.enu_origin.lat_deg},
+                     {"lon_deg", r.enu_origin.lon_deg},
+                     {"h_m", r.enu_origin.h_m},
+                     {"height_reference", "WGS84 ellipsoid"}};
+  j["control_points"] = PointsJson(r.control, r.control_stats, r.residuals_in_crs_units);
+  j["check_points"] = PointsJson(r.check, r.check_stats, r.residuals_in_crs_units);
+  const AsprsStatements check = AsprsStatements::From(r.check_stats);
+  j["asprs"] = {
+      {"based_on", r.check_stats.count > 0 ? "check points" : "no check points"},
+      {"edition_2014",
+       {{"horizontal_accuracy_95_m", check.horizontal_accuracy_95_m},
+        {"nva_95_m", check.nva_95_m},
+        {"note", "horizontal 95% = 1.7308 RMSE_r, NVA 95% = 1.96 RMSE_z"}}},
+      {"edition_2023",
+       {{"rmse_h_m", check.rmse_h_m}, {"rmse_v_m", check.rmse_v_m}, {"rmse_3d_m", check.rmse_3d_m}}}};
+  j["cameras"] = CamerasJson(r);
+  j["exterior_orientation"] = {
+      {"position", "camera centre in the output CRS (for a geographic CRS: lon, lat, ellipsoidal h)"},
+      {"angles", "omega, phi, kappa (deg) of R = Rx(omega) Ry(phi) Rz(kappa), the rotation from the photo frame "
+                 "(x right, y up the image, z out of the lens towards the viewer) to the grid axes (easting, "
+                 "northing, up); a nadir photo with its top to the north has 0, 0, 0"},
+      {"sigmas", "posterior standard deviations (scaled by sigma0^2), position on the grid axes"}};
+  j["adjustment"] = BundleSummaryJson(r.bundle, model);
+  for (auto& c : j["adjustment"]["intrinsics"]) {
+    for (const Camera& initial : r.initial_cameras) {
+      if (initial.id != c["camera"].get<int>() || initial.info().name != c["model"].get<std::string>()) continue;
+      nlohmann::json params;
+      for (int i = 0; i < initial.info().num_params(); ++i) params[initial.info().param_names[i]] = initial.params[i];
+      c["initial_params"] = params;
+    }
+  }
+  AddLeaveOneOut(r, &j);
+  AddPrecision(r, &j);
+  j["adjustment"]["helmert"] = {{"correspondences", r.helmert_correspondences},
+                                {"inliers", r.helmert_inliers},
+                                {"rms_m", r.helmert_rms_m},
+                                {"datum_source", r.datum_source}};
+  AddDatumAndGnss(r, &j);
+  const BlockGeometry& g = r.geometry;
+  j["adjustment"]["block_geometry"] = {{"images", g.images},
+                                       {"median_depth_m", g.median_depth_m},
+                                       {"relief_ratio", g.relief_ratio},
+                                       {"roughness_ratio", g.roughness_ratio},
+                                       {"height_variation_ratio", g.height_variation_ratio},
+                                       {"tilt_p90_deg", g.tilt_p90_deg},
+                                       {"gsd_m", g.gsd_m},
+                                       {"gps_sigma_v_m", g.gps_sigma_v_m}};
+  j["adjustment"]["block_geometry"]["nadir_flat_single_altitude"] = g.nadir_flat_single_altitude;
+  j["adjustment"]["refinement"] = {{"policy", r.refinement_auto ? "auto" : "given (--refine)"},
+                                   {"refined", r.refined},
+                                   {"reason", r.refinement_reason}};
+  AddIntrinsicsPrecision(r, model, &j);
+  j["adjustment"]["dome"] = {{"source", r.dome.source},
+                             {"points", r.dome.points},
+                             {"radius_m", r.dome.radius_m},
+                             {"amplitude_m", r.dome.amplitude_m},
+                             {"amplitude_sigma_m", r.dome.amplitude_sigma_m},
+                             {"t", r.dome.t},
+                             {"t_critical", r.dome.t_critical},
+                             {"significant", r.dome.significant},
+                             {"note", "vertical residual at the block's edge minus at its centre (dz = a + b x + c y + amplitude r^2 / R^2); significant: |t| beyond Student's t at points - 4 degrees of freedom, "
+                                      "two-sided 0.27 % (3.0 for many points)"}};
+  AddGpsOffset(r, &j);
   j["status"] = SurveyStatus(r.findings);
   j["warnings"] = FindingsJson(r.findings, Severity::kWarning);
   j["errors"] = FindingsJson(r.findings, Severity::kError);
