@@ -13,7 +13,7 @@ packages=(
   libgdal-dev gdal-bin
   libgtest-dev googletest
   libcli11-dev nlohmann-json3-dev libbz2-dev
-  time
+  time universal-ctags
   snakemake
 )
 

@@ -121,6 +121,43 @@ nlohmann::json InitialOrientationJson(const InitialOrientationReport& r) {
 
 }  // namespace
 
+namespace {
+
+// Gimbal angles (DJI XMP) of the model's photos, to check the adjusted
+// attitudes against; unreadable photos are GpsFromImages' to name.
+std::map<std::string, GimbalAttitude> GimbalAnglesOf(const SparseModel& model, const std::string& images_dir) {
+  std::map<std::string, GimbalAttitude> gimbal;
+  for (const Image& image : model.images) {
+    const fs::path path = fs::path(images_dir) / image.name;
+    if (!fs::exists(path)) continue;  // GpsFromImages has said so
+    try {
+      const ImageMetadata m = ReadImageMetadata(path);
+      if (m.gimbal_pitch_deg && m.gimbal_yaw_deg) gimbal[image.name] = {*m.gimbal_pitch_deg, *m.gimbal_yaw_deg};
+    } catch (const Error&) {
+      // unreadable: GpsFromImages has said so
+    }
+  }
+  return gimbal;
+}
+
+// The stdout line of figures. An RMSE over no points is not a figure:
+// "nan", never a reassuring 0.0000.
+std::string FiguresLine(const GeoreferenceReport& report, const std::string& status) {
+  const auto rmse = [](int count, double value) { return count > 0 ? value : std::nan(""); };
+  char line[512];
+  std::snprintf(line, sizeof(line),
+                "status=%s crs=%s final_rms_px=%.4f control_count=%d control_rmse_3d_m=%.4f "
+                "check_count=%d check_rmse_h_m=%.4f check_rmse_v_m=%.4f check_rmse_3d_m=%.4f\n",
+                status.c_str(), report.crs.c_str(), report.bundle.final_rms_px, report.control_stats.count,
+                rmse(report.control_stats.count, report.control_stats.rmse_3d_m), report.check_stats.count,
+                rmse(report.check_stats.count, report.check_stats.rmse_h_m),
+                rmse(report.check_stats.count, report.check_stats.rmse_z_m),
+                rmse(report.check_stats.count, report.check_stats.rmse_3d_m));
+  return line;
+}
+
+}  // namespace
+
 int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   const fs::path output(args.output);
   if (args.model_dir.empty() && args.measurements.empty()) {
@@ -198,18 +235,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   }
   // Gimbal angles (DJI XMP), to check the adjusted attitudes against.
   std::map<std::string, GimbalAttitude> gimbal;
-  if (!args.images_dir.empty()) {
-    for (const Image& image : model.images) {
-      const fs::path path = fs::path(args.images_dir) / image.name;
-      if (!fs::exists(path)) continue;  // GpsFromImages has said so
-      try {
-        const ImageMetadata m = ReadImageMetadata(path);
-        if (m.gimbal_pitch_deg && m.gimbal_yaw_deg) gimbal[image.name] = {*m.gimbal_pitch_deg, *m.gimbal_yaw_deg};
-      } catch (const Error&) {
-        // unreadable: GpsFromImages has said so
-      }
-    }
-  }
+  if (!args.images_dir.empty()) gimbal = GimbalAnglesOf(model, args.images_dir);
   if (!args.gps_csv.empty()) {
     const auto csv = ReadGpsFile(args.gps_csv, reference, args.gps_sigma_h_m, args.gps_sigma_v_m);
     for (const auto& [name, fix] : csv) gps[name] = fix;
@@ -252,19 +278,8 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   ctx.Info("wrote " + (output / "model").string() + ", " + (output / "report.json").string() +
            ", cameras.csv, exterior_orientation.csv, cameras.gpkg and tie_points.csv");
 
-  // An RMSE over no points is not a figure: "nan", never a reassuring 0.0000.
-  const auto rmse = [](int count, double value) { return count > 0 ? value : std::nan(""); };
-  char line[512];
   const std::string status = SurveyStatus(report.findings);
-  std::snprintf(line, sizeof(line),
-                "status=%s crs=%s final_rms_px=%.4f control_count=%d control_rmse_3d_m=%.4f "
-                "check_count=%d check_rmse_h_m=%.4f check_rmse_v_m=%.4f check_rmse_3d_m=%.4f\n",
-                status.c_str(), report.crs.c_str(), report.bundle.final_rms_px, report.control_stats.count,
-                rmse(report.control_stats.count, report.control_stats.rmse_3d_m), report.check_stats.count,
-                rmse(report.check_stats.count, report.check_stats.rmse_h_m),
-                rmse(report.check_stats.count, report.check_stats.rmse_z_m),
-                rmse(report.check_stats.count, report.check_stats.rmse_3d_m));
-  *ctx.out << line << std::flush;
+  *ctx.out << FiguresLine(report, status) << std::flush;
   if (status == "failed") {
     for (const Finding& f : report.findings) {
       if (f.severity == Severity::kError) ctx.Error("survey failed: " + f.code + ": " + f.message);

@@ -318,18 +318,11 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
   }
 }
 
-int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
-  // One process per workspace: a second one exits 1 at once, naming the
-  // holder. Holding the lock, anything a killed run left half-written is
-  // stale. A workflow's dense shares share the workspace (each writes its
-  // own files): they leave the others' files in progress alone.
-  const bool share_job = !a.depth_share.empty() || !a.fuse_share.empty() || !a.band_share.empty();
-  const DirectoryLock lock(a.output, share_job ? DirectoryLock::Mode::kShared : DirectoryLock::Mode::kExclusive);
-  if (!share_job) {
-    for (const std::filesystem::path& p : RemoveStaleTemporaryFiles(a.output)) {
-      ctx.Info("removed " + p.string() + " (left by an interrupted run)");
-    }
-  }
+namespace {
+
+// The pipeline's options from the command line's (shares K/N into the
+// share from 0 and the count), with the context's progress and log.
+PipelineOptions PipelineOptionsOf(const RunArgs& a, ToolContext& ctx) {
   PipelineOptions o;
   // K/N (checked by ShareValidator) into the share (from 0) and the count.
   const auto share_of = [](const std::string& kn, int* share, int* shares) {
@@ -404,6 +397,24 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
       ctx.Info(message);
     }
   };
+  return o;
+}
+
+}  // namespace
+
+int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
+  // One process per workspace: a second one exits 1 at once, naming the
+  // holder. Holding the lock, anything a killed run left half-written is
+  // stale. A workflow's dense shares share the workspace (each writes its
+  // own files): they leave the others' files in progress alone.
+  const bool share_job = !a.depth_share.empty() || !a.fuse_share.empty() || !a.band_share.empty();
+  const DirectoryLock lock(a.output, share_job ? DirectoryLock::Mode::kShared : DirectoryLock::Mode::kExclusive);
+  if (!share_job) {
+    for (const std::filesystem::path& p : RemoveStaleTemporaryFiles(a.output)) {
+      ctx.Info("removed " + p.string() + " (left by an interrupted run)");
+    }
+  }
+  const PipelineOptions o = PipelineOptionsOf(a, ctx);
   const std::string& s = a.stage;
   if (s == "run") {
     RunPipeline(o);  // its status is read back from report.json below

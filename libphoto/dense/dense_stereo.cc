@@ -319,26 +319,187 @@ TileGrid FusionGrid(double res, const DenseOptions& o) { return {res, o.tile_vox
 // the runs balanced by the depth records the tiles hold: the shares in index
 // order fuse every tile once and hand the sink what one call would, in its
 // order.
+// One depth point on its way into a voxel.
+struct FusionRecord {
+  std::uint64_t key;
+  float x, y, z;
+  std::uint16_t file;
+  std::uint8_t rgb[3];
+};
+
+// The depth-point files' headers: bounding boxes and tile tables.
+struct FusionInputs {
+  const std::vector<std::filesystem::path>& files;
+  std::vector<DepthPoints> heads;
+  std::vector<Eigen::Vector3d> lo, hi;
+  TileGrid grid;
+  double res = 0.0, tile = 0.0;
+  long long tile_voxels = 0;
+  bool Meets(size_t f, long long tx, long long ty) const {
+    return !(hi[f].x() < tx * tile || lo[f].x() >= (tx + 1) * tile || hi[f].y() < ty * tile ||
+             lo[f].y() >= (ty + 1) * tile);
+  }
+};
+
+// A share's tiles: each tile's records (from the files' tile tables), and
+// the share whose run holds the tile's middle record.
+std::vector<std::pair<long long, long long>> ShareTiles(const FusionInputs& in,
+                                                        const std::vector<std::pair<long long, long long>>& tiles,
+                                                        const DenseShare& share) {
+  const std::vector<std::filesystem::path>& files = in.files;
+  std::vector<double> weight(tiles.size(), 0.0);
+  double total = 0.0;
+  for (size_t t = 0; t < tiles.size(); ++t) {
+    const auto [tx, ty] = tiles[t];
+    for (size_t f = 0; f < files.size(); ++f) {
+      if (!in.Meets(f, tx, ty)) continue;
+      weight[t] += static_cast<double>(in.heads[f].CountIn(tiles[t], in.grid));
+    }
+    total += weight[t];
+  }
+  std::vector<std::pair<long long, long long>> mine;
+  double before = 0.0;
+  for (size_t t = 0; t < tiles.size(); ++t) {
+    const double middle = total > 0 ? (before + 0.5 * weight[t]) / total : (t + 0.5) / tiles.size();
+    before += weight[t];
+    if (std::min(share.count - 1, static_cast<int>(middle * share.count)) == share.index) mine.push_back(tiles[t]);
+  }
+  return mine;
+}
+
+// A tile's depth records, sorted by voxel (then file): the tile owns the
+// voxels whose index lies in it, so tiles have no seams.
+std::vector<FusionRecord> TileRecords(const FusionInputs& in, const std::pair<long long, long long>& tile_xy) {
+  const std::vector<std::filesystem::path>& files = in.files;
+  const auto [tx, ty] = tile_xy;
+  const double res = in.res;
+  const long long tile_voxels = in.tile_voxels;
+  auto meets_tile = [&](size_t f) { return in.Meets(f, tx, ty); };
+  // Reserved at the most the tile can receive: address space, not memory
+  // (pages are resident once written), and no reallocation, which would
+  // hold the old and the new array at once (up to 3x the records).
+  std::uint64_t most = 0;
+  for (size_t f = 0; f < files.size(); ++f) most += meets_tile(f) ? in.heads[f].CountIn(tile_xy, in.grid) : 0;
+  std::vector<FusionRecord> records;
+  records.reserve(most);
+  for (size_t f = 0; f < files.size(); ++f) {
+    if (!meets_tile(f) || in.heads[f].CountIn(tile_xy, in.grid) == 0) continue;
+    const DepthPoints d = DepthPoints::Read(files[f], true, tile_xy, in.grid);
+    for (size_t k = 0; k < d.count(); ++k) {
+      FusionRecord r;
+      const Eigen::Vector3d x = d.Point(k, r.rgb);
+      // The tile owns the voxels whose index lies in it: no seams.
+      const long long ix = static_cast<long long>(std::floor(x.x() / res));
+      const long long iy = static_cast<long long>(std::floor(x.y() / res));
+      if (ix < tx * tile_voxels || ix >= (tx + 1) * tile_voxels || iy < ty * tile_voxels ||
+          iy >= (ty + 1) * tile_voxels) {
+        continue;
+      }
+      r.key = VoxelKey(x, res);
+      r.x = static_cast<float>(x.x());
+      r.y = static_cast<float>(x.y());
+      r.z = static_cast<float>(x.z());
+      r.file = static_cast<std::uint16_t>(f);
+      records.push_back(r);
+    }
+  }
+  std::sort(records.begin(), records.end(), [](const FusionRecord& a, const FusionRecord& b) {
+    return a.key != b.key ? a.key < b.key : a.file < b.file;
+  });
+  return records;
+}
+
+// The voxels (runs of one key) that enough depth maps agree on, each as
+// its points' mean position and colour.
+DenseCloud AgreedVoxels(const std::vector<FusionRecord>& records, double res, const DenseOptions& o) {
+  DenseCloud part;
+  // The voxels (runs of one key) and how many depth maps put a point in
+  // each; a map's vote counts in its voxel and the voxels up to
+  // agreement_voxels above and below (pairs at small angles disagree in
+  // depth by a voxel or two where they agree in plan).
+  std::vector<size_t> start;
+  for (size_t a = 0; a < records.size(); ++a) {
+    if (a == 0 || records[a].key != records[a - 1].key) start.push_back(a);
+  }
+  start.push_back(records.size());
+  const size_t voxels = start.size() - 1;
+  constexpr std::uint64_t kZMask = (std::uint64_t{1} << 21) - 1;
+  auto column = [](std::uint64_t key) { return key >> 21; };
+  // Distinct files over the voxels v0..v1 (consecutive runs).
+  auto count_files = [&](size_t v0, size_t v1) {
+    std::vector<std::uint16_t> files;
+    for (size_t k = start[v0]; k < start[v1 + 1]; ++k) files.push_back(records[k].file);
+    std::sort(files.begin(), files.end());
+    return static_cast<int>(std::unique(files.begin(), files.end()) - files.begin());
+  };
+  // Where one depth map alone saw the ground (a strip's rim, seen by one
+  // pair of photos), there is no second opinion to ask: its points stand.
+  // A coarse cell (16 x 16 voxel columns) with points of two or more maps
+  // asks for agreement.
+  auto cell_of = [&](std::uint64_t key) { return ((key >> 46) << 17) | ((key >> 25) & 0x1FFFF); };
+  std::unordered_map<std::uint64_t, std::pair<std::uint16_t, int>> maps_in_cell;  // first file, distinct files
+  if (o.single_map_where_alone) {
+    for (const FusionRecord& r : records) {
+      auto [it, inserted] = maps_in_cell.try_emplace(cell_of(r.key), r.file, 1);
+      if (!inserted && it->second.second == 1 && it->second.first != r.file) it->second.second = 2;
+    }
+  }
+  for (size_t v = 0; v < voxels; ++v) {
+    const std::uint64_t key = records[start[v]].key;
+    const std::uint64_t z = key & kZMask;
+    auto near = [&](size_t u) {
+      const std::uint64_t other = records[start[u]].key;
+      const std::uint64_t dz = (other & kZMask) > z ? (other & kZMask) - z : z - (other & kZMask);
+      return column(other) == column(key) && dz <= static_cast<std::uint64_t>(o.agreement_voxels);
+    };
+    size_t v0 = v, v1 = v;
+    while (v0 > 0 && near(v0 - 1)) --v0;
+    while (v1 + 1 < voxels && near(v1 + 1)) ++v1;
+    const int views = count_files(v0, v1);
+    bool keep = views >= o.min_views;
+    if (!keep && o.single_map_where_alone) {
+      const auto it = maps_in_cell.find(cell_of(key));
+      keep = it != maps_in_cell.end() && it->second.second == 1;
+    }
+    if (!keep) continue;
+    double sum[3] = {0, 0, 0};
+    std::uint32_t rgb[3] = {0, 0, 0};
+    for (size_t k = start[v]; k < start[v + 1]; ++k) {
+      const FusionRecord& r = records[k];
+      sum[0] += r.x;
+      sum[1] += r.y;
+      sum[2] += r.z;
+      for (int c = 0; c < 3; ++c) rgb[c] += r.rgb[c];
+    }
+    const double n = static_cast<double>(start[v + 1] - start[v]);
+    part.positions.emplace_back(sum[0] / n, sum[1] / n, sum[2] / n);
+    part.colours.push_back({static_cast<std::uint8_t>(rgb[0] / n), static_cast<std::uint8_t>(rgb[1] / n),
+                            static_cast<std::uint8_t>(rgb[2] / n)});
+    part.views.push_back(static_cast<std::uint16_t>(views));
+  }
+  part.resolution_m = res;
+  return part;
+}
+
 void Fuse(const std::vector<std::filesystem::path>& files, double res, const DenseOptions& o,
           const FusedTileSink& sink, DenseSummary* s, const ProgressCallback& progress = {},
           const DenseShare& share = {}) {
   DenseSummary unused;
   if (s == nullptr) s = &unused;
   if (files.empty()) return;
-  std::vector<Eigen::Vector3d> lo, hi;
-  std::vector<DepthPoints> heads;  // bounding boxes and tile tables
+  FusionInputs in{files, {}, {}, {}, FusionGrid(res, o), res, 0.0, 0};
   Eigen::Vector2d all_lo(1e300, 1e300), all_hi(-1e300, -1e300);
   for (const auto& f : files) {
-    heads.push_back(DepthPoints::Read(f, false));
-    const DepthPoints& h = heads.back();
-    lo.push_back(h.lo());
-    hi.push_back(h.hi());
+    in.heads.push_back(DepthPoints::Read(f, false));
+    const DepthPoints& h = in.heads.back();
+    in.lo.push_back(h.lo());
+    in.hi.push_back(h.hi());
     all_lo = all_lo.cwiseMin(h.lo().head<2>());
     all_hi = all_hi.cwiseMax(h.hi().head<2>());
   }
-  const TileGrid grid = FusionGrid(res, o);
-  const long long tile_voxels = grid.tile_voxels;
-  const double tile = tile_voxels * res;
+  in.tile_voxels = in.grid.tile_voxels;
+  in.tile = in.tile_voxels * res;
+  const double tile = in.tile;
   const long long x0 = static_cast<long long>(std::floor(all_lo.x() / tile));
   const long long y0 = static_cast<long long>(std::floor(all_lo.y() / tile));
   const long long x1 = static_cast<long long>(std::floor(all_hi.x() / tile));
@@ -347,143 +508,14 @@ void Fuse(const std::vector<std::filesystem::path>& files, double res, const Den
   for (long long ty = y0; ty <= y1; ++ty) {
     for (long long tx = x0; tx <= x1; ++tx) tiles.push_back({tx, ty});
   }
-  if (share.count > 1) {
-    // Each tile's records (from the files' tile tables) and the share whose
-    // run holds the tile's middle record.
-    std::vector<double> weight(tiles.size(), 0.0);
-    double total = 0.0;
-    for (size_t t = 0; t < tiles.size(); ++t) {
-      const auto [tx, ty] = tiles[t];
-      for (size_t f = 0; f < files.size(); ++f) {
-        if (hi[f].x() < tx * tile || lo[f].x() >= (tx + 1) * tile || hi[f].y() < ty * tile ||
-            lo[f].y() >= (ty + 1) * tile) {
-          continue;
-        }
-        weight[t] += static_cast<double>(heads[f].CountIn(tiles[t], grid));
-      }
-      total += weight[t];
-    }
-    std::vector<std::pair<long long, long long>> mine;
-    double before = 0.0;
-    for (size_t t = 0; t < tiles.size(); ++t) {
-      const double middle = total > 0 ? (before + 0.5 * weight[t]) / total : (t + 0.5) / tiles.size();
-      before += weight[t];
-      if (std::min(share.count - 1, static_cast<int>(middle * share.count)) == share.index) mine.push_back(tiles[t]);
-    }
-    tiles.swap(mine);
-  }
-  struct Record {
-    std::uint64_t key;
-    float x, y, z;
-    std::uint16_t file;
-    std::uint8_t rgb[3];
-  };
+  if (share.count > 1) tiles = ShareTiles(in, tiles, share);
   // Tiles on all cores, handed to the sink in tile order (the same cloud
   // every run); at most two tiles a thread wait for their turn.
   const unsigned threads = ThreadCount(o.num_threads);
   std::vector<DenseCloud> parts(tiles.size());
   auto fuse_tile = [&](size_t t) {
-    const auto [tx, ty] = tiles[t];
-    const double bx0 = tx * tile, bx1 = (tx + 1) * tile, by0 = ty * tile, by1 = (ty + 1) * tile;
-    auto meets_tile = [&](size_t f) {
-      return !(hi[f].x() < bx0 || lo[f].x() >= bx1 || hi[f].y() < by0 || lo[f].y() >= by1);
-    };
-    // Reserved at the most the tile can receive: address space, not memory
-    // (pages are resident once written), and no reallocation, which would
-    // hold the old and the new array at once (up to 3x the records).
-    std::uint64_t most = 0;
-    for (size_t f = 0; f < files.size(); ++f) most += meets_tile(f) ? heads[f].CountIn(tiles[t], grid) : 0;
-    std::vector<Record> records;
-    records.reserve(most);
-    for (size_t f = 0; f < files.size(); ++f) {
-      if (!meets_tile(f) || heads[f].CountIn(tiles[t], grid) == 0) continue;
-      const DepthPoints d = DepthPoints::Read(files[f], true, tiles[t], grid);
-      for (size_t k = 0; k < d.count(); ++k) {
-        Record r;
-        const Eigen::Vector3d x = d.Point(k, r.rgb);
-        // The tile owns the voxels whose index lies in it: no seams.
-        const long long ix = static_cast<long long>(std::floor(x.x() / res));
-        const long long iy = static_cast<long long>(std::floor(x.y() / res));
-        if (ix < tx * tile_voxels || ix >= (tx + 1) * tile_voxels || iy < ty * tile_voxels ||
-            iy >= (ty + 1) * tile_voxels) {
-          continue;
-        }
-        r.key = VoxelKey(x, res);
-        r.x = static_cast<float>(x.x());
-        r.y = static_cast<float>(x.y());
-        r.z = static_cast<float>(x.z());
-        r.file = static_cast<std::uint16_t>(f);
-        records.push_back(r);
-      }
-    }
-    std::sort(records.begin(), records.end(),
-              [](const Record& a, const Record& b) { return a.key != b.key ? a.key < b.key : a.file < b.file; });
-    // The voxels (runs of one key) and how many depth maps put a point in
-    // each; a map's vote counts in its voxel and the voxels up to
-    // agreement_voxels above and below (pairs at small angles disagree in
-    // depth by a voxel or two where they agree in plan).
-    std::vector<size_t> start;
-    for (size_t a = 0; a < records.size(); ++a) {
-      if (a == 0 || records[a].key != records[a - 1].key) start.push_back(a);
-    }
-    start.push_back(records.size());
-    const size_t voxels = start.size() - 1;
-    constexpr std::uint64_t kZMask = (std::uint64_t{1} << 21) - 1;
-    auto column = [](std::uint64_t key) { return key >> 21; };
-    // Distinct files over the voxels v0..v1 (consecutive runs).
-    auto count_files = [&](size_t v0, size_t v1) {
-      std::vector<std::uint16_t> files;
-      for (size_t k = start[v0]; k < start[v1 + 1]; ++k) files.push_back(records[k].file);
-      std::sort(files.begin(), files.end());
-      return static_cast<int>(std::unique(files.begin(), files.end()) - files.begin());
-    };
-    // Where one depth map alone saw the ground (a strip's rim, seen by one
-    // pair of photos), there is no second opinion to ask: its points stand.
-    // A coarse cell (16 x 16 voxel columns) with points of two or more maps
-    // asks for agreement.
-    auto cell_of = [&](std::uint64_t key) { return ((key >> 46) << 17) | ((key >> 25) & 0x1FFFF); };
-    std::unordered_map<std::uint64_t, std::pair<std::uint16_t, int>> maps_in_cell;  // first file, distinct files
-    if (o.single_map_where_alone) {
-      for (const Record& r : records) {
-        auto [it, inserted] = maps_in_cell.try_emplace(cell_of(r.key), r.file, 1);
-        if (!inserted && it->second.second == 1 && it->second.first != r.file) it->second.second = 2;
-      }
-    }
     DenseCloud& part = parts[t];
-    for (size_t v = 0; v < voxels; ++v) {
-      const std::uint64_t key = records[start[v]].key;
-      const std::uint64_t z = key & kZMask;
-      auto near = [&](size_t u) {
-        const std::uint64_t other = records[start[u]].key;
-        const std::uint64_t dz = (other & kZMask) > z ? (other & kZMask) - z : z - (other & kZMask);
-        return column(other) == column(key) && dz <= static_cast<std::uint64_t>(o.agreement_voxels);
-      };
-      size_t v0 = v, v1 = v;
-      while (v0 > 0 && near(v0 - 1)) --v0;
-      while (v1 + 1 < voxels && near(v1 + 1)) ++v1;
-      const int views = count_files(v0, v1);
-      bool keep = views >= o.min_views;
-      if (!keep && o.single_map_where_alone) {
-        const auto it = maps_in_cell.find(cell_of(key));
-        keep = it != maps_in_cell.end() && it->second.second == 1;
-      }
-      if (!keep) continue;
-      double sum[3] = {0, 0, 0};
-      std::uint32_t rgb[3] = {0, 0, 0};
-      for (size_t k = start[v]; k < start[v + 1]; ++k) {
-        const Record& r = records[k];
-        sum[0] += r.x;
-        sum[1] += r.y;
-        sum[2] += r.z;
-        for (int c = 0; c < 3; ++c) rgb[c] += r.rgb[c];
-      }
-      const double n = static_cast<double>(start[v + 1] - start[v]);
-      part.positions.emplace_back(sum[0] / n, sum[1] / n, sum[2] / n);
-      part.colours.push_back({static_cast<std::uint8_t>(rgb[0] / n), static_cast<std::uint8_t>(rgb[1] / n),
-                              static_cast<std::uint8_t>(rgb[2] / n)});
-      part.views.push_back(static_cast<std::uint16_t>(views));
-    }
-    part.resolution_m = res;
+    part = AgreedVoxels(TileRecords(in, tiles[t]), res, o);
     if (sink.prepare && !part.positions.empty()) sink.prepare(&part);
   };
   ParallelForInOrder(
@@ -551,6 +583,64 @@ double MedianGsd(const SparseModel& model) {
 
 // Depth points of image i matched with j, written to path. False when the
 // pair cannot be matched (an image unreadable, too few sparse points).
+// A photo's border in the rectified frame (columns u, rows v at focal
+// length f), each coordinate within `most` of its principal ray.
+struct RectifiedExtent {
+  double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300;
+};
+
+RectifiedExtent ExtentOf(const Image& im, const Camera& cam, const Eigen::Matrix3d& rect_from_world, double f,
+                         double most) {
+  const Eigen::Matrix3d rect_from_cam = rect_from_world * im.pose.cam_from_world.toRotationMatrix().transpose();
+  const Eigen::Vector3d axis = rect_from_cam.col(2);
+  const double au = f * axis.x() / axis.z(), av = f * axis.y() / axis.z();
+  RectifiedExtent e;
+  constexpr int kSteps = 32;  // per side: the border bends under distortion
+  for (int side = 0; side < 4; ++side) {
+    for (int k = 0; k <= kSteps; ++k) {
+      const double t = static_cast<double>(k) / kSteps;
+      const double x = side < 2 ? t * cam.width - 0.5 : (side == 2 ? -0.5 : cam.width - 0.5);
+      const double y = side < 2 ? (side == 0 ? -0.5 : cam.height - 0.5) : t * cam.height - 0.5;
+      const auto ray = cam.RayFromImage(Eigen::Vector2d(x, y));
+      if (!ray) continue;
+      const Eigen::Vector3d r = rect_from_cam * *ray;
+      if (r.z() <= 1e-3) continue;
+      const double u = std::clamp(f * r.x() / r.z(), au - most, au + most);
+      const double v = std::clamp(f * r.y() / r.z(), av - most, av + most);
+      e.u0 = std::min(e.u0, u), e.u1 = std::max(e.u1, u);
+      e.v0 = std::min(e.v0, v), e.v1 = std::max(e.v1, v);
+    }
+  }
+  return e;
+}
+
+// The remap of a photo into the rectified frame (width x height, principal
+// point cx, cy); -1 outside the photo (remaps to black).
+void RectificationMap(const Image& im, const Camera& cam, const Eigen::Matrix3d& rect_from_world, double f,
+                      double cx, double cy, int width, int height, double image_scale, cv::Mat* mx, cv::Mat* my) {
+  mx->create(height, width, CV_32F);
+  my->create(height, width, CV_32F);
+  const Eigen::Matrix3d cam_from_rect = im.pose.cam_from_world.toRotationMatrix() * rect_from_world.transpose();
+  for (int v = 0; v < height; ++v) {
+    float* px = mx->ptr<float>(v);
+    float* py = my->ptr<float>(v);
+    for (int u = 0; u < width; ++u) {
+      const Eigen::Vector3d ray = cam_from_rect * Eigen::Vector3d((u - cx) / f, (v - cy) / f, 1.0);
+      if (ray.z() <= 0) {
+        px[u] = py[u] = -1.0f;
+        continue;
+      }
+      const Eigen::Vector2d xy = cam.ImageFromCamera(ray);
+      if (xy.x() < -0.5 || xy.y() < -0.5 || xy.x() > cam.width - 0.5 || xy.y() > cam.height - 0.5) {
+        px[u] = py[u] = -1.0f;
+        continue;
+      }
+      px[u] = static_cast<float>((xy.x() + 0.5) * image_scale - 0.5);
+      py[u] = static_cast<float>((xy.y() + 0.5) * image_scale - 0.5);
+    }
+  }
+}
+
 bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::function<cv::Mat(int)>& load_image,
                        const DenseOptions& o, const TileGrid& grid, const std::filesystem::path& path,
                        long long* num_points) {
@@ -583,34 +673,8 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   // cuts a band off each side of the strip whenever the flight runs along
   // the photos' y axis (rectification turns them by 90 degrees), and with
   // it the block's rim from the DSM.
-  struct Extent {
-    double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300;
-  };
   const double most = 1.5 * std::max(img_a.cols, img_a.rows);  // from the principal ray, either way
-  auto extent_of = [&](const Image& im, const Camera& cam) {
-    const Eigen::Matrix3d rect_from_cam = rect_from_world * im.pose.cam_from_world.toRotationMatrix().transpose();
-    const Eigen::Vector3d axis = rect_from_cam.col(2);
-    const double au = f * axis.x() / axis.z(), av = f * axis.y() / axis.z();
-    Extent e;
-    constexpr int kSteps = 32;  // per side: the border bends under distortion
-    for (int side = 0; side < 4; ++side) {
-      for (int k = 0; k <= kSteps; ++k) {
-        const double t = static_cast<double>(k) / kSteps;
-        const double x = side < 2 ? t * cam.width - 0.5 : (side == 2 ? -0.5 : cam.width - 0.5);
-        const double y = side < 2 ? (side == 0 ? -0.5 : cam.height - 0.5) : t * cam.height - 0.5;
-        const auto ray = cam.RayFromImage(Eigen::Vector2d(x, y));
-        if (!ray) continue;
-        const Eigen::Vector3d r = rect_from_cam * *ray;
-        if (r.z() <= 1e-3) continue;
-        const double u = std::clamp(f * r.x() / r.z(), au - most, au + most);
-        const double v = std::clamp(f * r.y() / r.z(), av - most, av + most);
-        e.u0 = std::min(e.u0, u), e.u1 = std::max(e.u1, u);
-        e.v0 = std::min(e.v0, v), e.v1 = std::max(e.v1, v);
-      }
-    }
-    return e;
-  };
-  const Extent ea = extent_of(a, ca), eb = extent_of(b, cb);
+  const RectifiedExtent ea = ExtentOf(a, ca, rect_from_world, f, most), eb = ExtentOf(b, cb, rect_from_world, f, most);
   const double v0 = std::max(ea.v0, eb.v0), v1 = std::min(ea.v1, eb.v1);
   if (!(ea.u1 > ea.u0) || !(eb.u1 > eb.u0) || !(v1 > v0)) return false;
   // Disparity range from image a's sparse points (2nd to 98th percentile,
@@ -634,34 +698,9 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   const int height = static_cast<int>(std::ceil(v1 - v0)) + 1;
   const double offset = 8.0 - std::floor(dlo * 0.85);
   const double cxa = -ea.u0, cxb = cxa - offset, cy = -v0;
-  auto build_map = [&](const Image& im, const Camera& cam, double cx, cv::Mat* mx, cv::Mat* my) {
-    mx->create(height, width, CV_32F);
-    my->create(height, width, CV_32F);
-    const Eigen::Matrix3d cam_from_rect =
-        im.pose.cam_from_world.toRotationMatrix() * rect_from_world.transpose();
-    for (int v = 0; v < height; ++v) {
-      float* px = mx->ptr<float>(v);
-      float* py = my->ptr<float>(v);
-      for (int u = 0; u < width; ++u) {
-        const Eigen::Vector3d ray = cam_from_rect * Eigen::Vector3d((u - cx) / f, (v - cy) / f, 1.0);
-        if (ray.z() <= 0) {
-          px[u] = py[u] = -1.0f;
-          continue;
-        }
-        const Eigen::Vector2d xy = cam.ImageFromCamera(ray);
-        // Outside the photo: no content (-1 marks it, and remaps to black).
-        if (xy.x() < -0.5 || xy.y() < -0.5 || xy.x() > cam.width - 0.5 || xy.y() > cam.height - 0.5) {
-          px[u] = py[u] = -1.0f;
-          continue;
-        }
-        px[u] = static_cast<float>((xy.x() + 0.5) * o.image_scale - 0.5);
-        py[u] = static_cast<float>((xy.y() + 0.5) * o.image_scale - 0.5);
-      }
-    }
-  };
   cv::Mat mxa, mya, mxb, myb, ra, rb;
-  build_map(a, ca, cxa, &mxa, &mya);
-  build_map(b, cb, cxb, &mxb, &myb);
+  RectificationMap(a, ca, rect_from_world, f, cxa, cy, width, height, o.image_scale, &mxa, &mya);
+  RectificationMap(b, cb, rect_from_world, f, cxb, cy, width, height, o.image_scale, &mxb, &myb);
   cv::remap(img_a, ra, mxa, mya, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
   cv::remap(img_b, rb, mxb, myb, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
   const int min_disp = 0;

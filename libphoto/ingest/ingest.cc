@@ -83,23 +83,62 @@ std::string JpegTruncation(const fs::path& path) {
 
 }  // namespace
 
-IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& progress) {
-  o.Check();
-  if (!fs::is_directory(o.images_dir)) throw IoError(o.images_dir.string(), "not a folder of images");
+namespace {
+
+// The image files of a folder, sorted; entries that cannot be followed (a
+// symbolic link loop or a missing target) are said, never fatal.
+std::vector<fs::path> ImageFilesIn(const fs::path& dir, std::vector<std::string>* dead_links) {
   std::vector<fs::path> files;
-  std::vector<std::string> dead_links;  // a loop or a missing target: said, never fatal
-  for (const auto& entry : fs::directory_iterator(o.images_dir)) {
+  for (const auto& entry : fs::directory_iterator(dir)) {
     if (!IsImageFileName(entry.path())) continue;
     std::error_code ec;
     const bool regular = entry.is_regular_file(ec);
     if (ec) {
-      dead_links.push_back(entry.path().string() + ": " + ec.message() + " (a symbolic link loop or a missing "
-                           "target); skipped");
+      dead_links->push_back(entry.path().string() + ": " + ec.message() + " (a symbolic link loop or a missing "
+                            "target); skipped");
     } else if (regular) {
       files.push_back(entry.path());
     }
   }
   std::sort(files.begin(), files.end());
+  return files;
+}
+
+// A camera group for a key, with its EXIF focal estimate at the working
+// size; a focal length not measured is said in *warnings.
+CameraGroup NewCameraGroup(const std::string& key, const ImageMetadata& m, int ww, int wh,
+                           std::vector<std::string>* warnings) {
+  ExifOptics optics;
+  optics.make = m.make;
+  optics.model = m.model;
+  optics.focal_mm = m.focal_mm;
+  optics.focal_35mm = m.focal_35mm;
+  optics.focal_plane_px_per_mm = m.focal_plane_px_per_mm;
+  optics.exif_pixel_width = m.exif_pixel_width;
+  optics.width = m.width;
+  optics.height = m.height;
+  const FocalEstimate focal = FocalFromExif(optics);
+  CameraGroup g;
+  g.key = key;
+  g.make = m.make;
+  g.model = m.model;
+  g.working_width = ww;
+  g.working_height = wh;
+  g.camera = Camera::Create(CameraModelId::kBrown, focal.focal_px * ww / m.width, ww, wh);
+  g.focal_source = focal.source;
+  g.focal_measured = focal.Measured();
+  g.pixel_size_mm = focal.pixel_size_mm * m.width / ww;
+  if (!focal.Measured()) warnings->push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
+  return g;
+}
+
+}  // namespace
+
+IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& progress) {
+  o.Check();
+  if (!fs::is_directory(o.images_dir)) throw IoError(o.images_dir.string(), "not a folder of images");
+  std::vector<std::string> dead_links;  // a loop or a missing target: said, never fatal
+  const std::vector<fs::path> files = ImageFilesIn(o.images_dir, &dead_links);
   if (files.empty()) {
     throw InvalidArgument(o.images_dir.string() + ": no images (.jpg, .jpeg, .tif, .tiff) found");
   }
@@ -138,30 +177,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
   // The group of a camera key, created with its EXIF focal estimate.
   auto group_for = [&](const std::string& key, const ImageMetadata& m, int ww, int wh) {
     auto [it, inserted] = group_of_key.emplace(key, static_cast<int>(r.groups.size()));
-    if (inserted) {
-      ExifOptics optics;
-      optics.make = m.make;
-      optics.model = m.model;
-      optics.focal_mm = m.focal_mm;
-      optics.focal_35mm = m.focal_35mm;
-      optics.focal_plane_px_per_mm = m.focal_plane_px_per_mm;
-      optics.exif_pixel_width = m.exif_pixel_width;
-      optics.width = m.width;
-      optics.height = m.height;
-      const FocalEstimate focal = FocalFromExif(optics);
-      CameraGroup g;
-      g.key = key;
-      g.make = m.make;
-      g.model = m.model;
-      g.working_width = ww;
-      g.working_height = wh;
-      g.camera = Camera::Create(CameraModelId::kBrown, focal.focal_px * ww / m.width, ww, wh);
-      g.focal_source = focal.source;
-      g.focal_measured = focal.Measured();
-      g.pixel_size_mm = focal.pixel_size_mm * m.width / ww;
-      r.groups.push_back(g);
-      if (!focal.Measured()) r.warnings.push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
-    }
+    if (inserted) r.groups.push_back(NewCameraGroup(key, m, ww, wh, &r.warnings));
     ++r.groups[it->second].images;
     return it->second;
   };

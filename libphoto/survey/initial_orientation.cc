@@ -314,6 +314,74 @@ void InitialOrientationOptions::Check() const {
   }
 }
 
+namespace {
+
+// The model of an orientation: the oriented images and the intersected tie
+// points with their marks; images left out and tie points lost are said.
+SparseModel ModelOfOrientation(Orienter& o, const Camera& camera, int num_ties,
+                               const InitialOrientationOptions& options, InitialOrientationReport* report) {
+  SparseModel model;
+  Camera c = camera;
+  c.id = 1;
+  model.cameras.push_back(c);
+  std::vector<int> model_image(o.image_names.size(), -1);
+  std::vector<std::string> left_out;
+  for (size_t i = 0; i < o.image_names.size(); ++i) {
+    ImageOrientationResult& r = o.results[i];
+    if (!o.poses[i]) {
+      r.how = "not oriented: it sees " + std::to_string(r.points_used) + " known point(s), " +
+              std::to_string(options.min_resection_points) + " needed for a space resection";
+      left_out.push_back(o.image_names[i]);
+      report->warnings.push_back("image " + o.image_names[i] + " left out of the adjustment: " + r.how);
+      continue;
+    }
+    Image image;
+    image.id = static_cast<int>(model.images.size()) + 1;
+    image.name = o.image_names[i];
+    image.camera = 0;
+    image.pose = *o.poses[i];
+    model_image[i] = static_cast<int>(model.images.size());
+    model.images.push_back(image);
+  }
+  std::vector<std::string> lost;
+  for (int k = 0; k < num_ties; ++k) {
+    const InitPoint& p = o.points[k];
+    if (!p.known) {
+      lost.push_back(p.name);
+      continue;
+    }
+    Point point;
+    point.id = static_cast<int>(model.points.size()) + 1;
+    point.position = p.position;
+    point.name = p.name;
+    const int index = static_cast<int>(model.points.size());
+    model.points.push_back(point);
+    for (const Mark& m : p.marks) {
+      if (model_image[m.image] < 0) continue;
+      report->suspect_marks += m.suspect;
+      Observation obs;
+      obs.image = model_image[m.image];
+      obs.point = index;
+      obs.xy = m.xy;
+      obs.sigma_px = m.sigma_px;
+      model.observations.push_back(obs);
+    }
+  }
+  if (!lost.empty()) {
+    report->warnings.push_back(std::to_string(lost.size()) + " of " + std::to_string(num_ties) +
+                               " tie points not intersected (seen in fewer than 2 oriented images, rays under " +
+                               std::to_string(options.min_angle_deg).substr(0, 4) + " deg apart, or a residual above " +
+                               std::to_string(options.max_intersection_rms_px).substr(0, 4) +
+                               " px): " + Names(lost));
+  }
+  report->tie_points_intersected = static_cast<int>(model.points.size());
+  report->oriented = static_cast<int>(model.images.size());
+  report->images = o.results;
+  return model;
+}
+
+}  // namespace
+
 SparseModel OrientFromMeasurements(const Camera& camera, const TiePointFile& ties, const GcpFile* control,
                                    const std::map<std::string, GpsFix>& gps,
                                    const InitialOrientationOptions& options, InitialOrientationReport* report) {
@@ -406,64 +474,7 @@ SparseModel OrientFromMeasurements(const Camera& camera, const TiePointFile& tie
   }
   o.Bundle();  // the last resections adjusted too, and every mark judged
 
-  // The model: oriented images, intersected tie points.
-  SparseModel model;
-  Camera c = camera;
-  c.id = 1;
-  model.cameras.push_back(c);
-  std::vector<int> model_image(o.image_names.size(), -1);
-  std::vector<std::string> left_out;
-  for (size_t i = 0; i < o.image_names.size(); ++i) {
-    ImageOrientationResult& r = o.results[i];
-    if (!o.poses[i]) {
-      r.how = "not oriented: it sees " + std::to_string(r.points_used) + " known point(s), " +
-              std::to_string(options.min_resection_points) + " needed for a space resection";
-      left_out.push_back(o.image_names[i]);
-      report->warnings.push_back("image " + o.image_names[i] + " left out of the adjustment: " + r.how);
-      continue;
-    }
-    Image image;
-    image.id = static_cast<int>(model.images.size()) + 1;
-    image.name = o.image_names[i];
-    image.camera = 0;
-    image.pose = *o.poses[i];
-    model_image[i] = static_cast<int>(model.images.size());
-    model.images.push_back(image);
-  }
-  std::vector<std::string> lost;
-  for (int k = 0; k < num_ties; ++k) {
-    const InitPoint& p = o.points[k];
-    if (!p.known) {
-      lost.push_back(p.name);
-      continue;
-    }
-    Point point;
-    point.id = static_cast<int>(model.points.size()) + 1;
-    point.position = p.position;
-    point.name = p.name;
-    const int index = static_cast<int>(model.points.size());
-    model.points.push_back(point);
-    for (const Mark& m : p.marks) {
-      if (model_image[m.image] < 0) continue;
-      report->suspect_marks += m.suspect;
-      Observation obs;
-      obs.image = model_image[m.image];
-      obs.point = index;
-      obs.xy = m.xy;
-      obs.sigma_px = m.sigma_px;
-      model.observations.push_back(obs);
-    }
-  }
-  if (!lost.empty()) {
-    report->warnings.push_back(std::to_string(lost.size()) + " of " + std::to_string(num_ties) +
-                               " tie points not intersected (seen in fewer than 2 oriented images, rays under " +
-                               std::to_string(options.min_angle_deg).substr(0, 4) + " deg apart, or a residual above " +
-                               std::to_string(options.max_intersection_rms_px).substr(0, 4) +
-                               " px): " + Names(lost));
-  }
-  report->tie_points_intersected = static_cast<int>(model.points.size());
-  report->oriented = static_cast<int>(model.images.size());
-  report->images = o.results;
+  SparseModel model = ModelOfOrientation(o, camera, num_ties, options, report);
   if (model.images.empty()) throw InvalidArgument("no image could be oriented from " + ties.path);
   model.Validate();
   return model;
