@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "georef/crs.h"
+#include "georef/local_frame.h"
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
 
@@ -210,6 +211,80 @@ void CheckGcpFileCrs(const GcpFile& file) {
   } catch (const CrsError& e) {
     throw ParseError(file.path, file.crs_line, std::string("the CRS line is not a CRS PROJ knows: ") + e.what());
   }
+}
+
+namespace {
+
+// A surveyed point in metres about a reference: ENU through WGS84, or a
+// local frame's own coordinates; none where the CRS cannot place it.
+std::optional<Eigen::Vector3d> MetresOf(const GroundPoint& p, const Crs& crs, const std::optional<LocalFrame>& frame) {
+  if (!frame) return p.xyz;
+  Eigen::Vector3d xyz = p.xyz;
+  if (p.horizontal_only) xyz.z() = 0.0;
+  try {
+    return frame->EnuFromGeodetic(crs.ToGeodetic(xyz));
+  } catch (const Error&) {
+    return std::nullopt;
+  }
+}
+
+Eigen::Vector2d SigmasOf(const GroundPoint& p, double default_h, double default_v) {
+  if (p.sigma_xyz_m) return {std::max(p.sigma_xyz_m->x(), p.sigma_xyz_m->y()), p.sigma_xyz_m->z()};
+  return {p.sigma_h_m.value_or(default_h), p.sigma_v_m.value_or(default_v)};
+}
+
+}  // namespace
+
+void CheckChecksIndependent(const GcpFile& control, const GcpFile& checks, double default_sigma_h_m,
+                            double default_sigma_v_m) {
+  if (control.points.empty() || checks.points.empty()) return;
+  const Crs control_crs = Crs::FromString(control.crs), check_crs = Crs::FromString(checks.crs);
+  const bool local = control_crs.IsLocal() || check_crs.IsLocal();
+  if (local && control.crs != checks.crs) return;  // frames that cannot meet: refused elsewhere
+  std::optional<LocalFrame> frame;
+  if (!local) {
+    for (const GroundPoint& p : control.points) {
+      Eigen::Vector3d xyz = p.xyz;
+      if (p.horizontal_only) xyz.z() = 0.0;
+      try {
+        frame.emplace(control_crs.ToGeodetic(xyz));
+        break;
+      } catch (const Error&) {
+      }
+    }
+    if (!frame) return;
+  }
+  std::vector<std::string> pairs;
+  for (const GroundPoint& k : checks.points) {
+    const std::optional<Eigen::Vector3d> at_k = MetresOf(k, check_crs, frame);
+    for (const GroundPoint& c : control.points) {
+      if (c.name == k.name) {
+        pairs.push_back(k.name + " (the same name)");
+        break;
+      }
+      const std::optional<Eigen::Vector3d> at_c = MetresOf(c, control_crs, frame);
+      if (!at_k || !at_c) continue;
+      const Eigen::Vector2d sk = SigmasOf(k, default_sigma_h_m, default_sigma_v_m);
+      const Eigen::Vector2d sc = SigmasOf(c, default_sigma_h_m, default_sigma_v_m);
+      const Eigen::Vector3d d = *at_k - *at_c;
+      const bool heights = !k.horizontal_only && !c.horizontal_only;
+      if (d.head<2>().norm() <= 3.0 * std::hypot(sk.x(), sc.x()) &&
+          (!heights || std::abs(d.z()) <= 3.0 * std::hypot(sk.y(), sc.y()))) {
+        char text[96];
+        std::snprintf(text, sizeof text, " (%.3f m from control point ", d.norm());
+        pairs.push_back(k.name + text + c.name + ")");
+        break;
+      }
+    }
+  }
+  if (pairs.empty()) return;
+  std::string list;
+  for (size_t n = 0; n < pairs.size() && n < 10; ++n) list += (n ? ", " : "") + pairs[n];
+  if (pairs.size() > 10) list += " (and " + std::to_string(pairs.size() - 10) + " more)";
+  throw UsageError(checks.path + ": " + std::to_string(pairs.size()) + " of its " +
+                   std::to_string(checks.points.size()) + " check points are control points of " + control.path +
+                   " too: " + list + ". A check point tests the survey only if the adjustment never saw it; give "
+                   "independent check points, or leave these out of one of the files");
 }
 
 }  // namespace aerotri

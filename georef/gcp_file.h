@@ -71,6 +71,16 @@ GcpFile ReadGcpFile(const std::filesystem::path& path,
 // that parsing stays cheap); throws ParseError naming the file and the line.
 void CheckGcpFileCrs(const GcpFile& file);
 
+// Check points are independent of the control: none has a control point's
+// name, and none lies within 3 sigma of a control point (horizontally, and
+// vertically where both have heights; each point's sigmas from its file,
+// else the defaults), compared in metres through WGS84 (in a local frame,
+// in its own coordinates). Throws UsageError naming the pairs: the control
+// file passed again as the check file would judge the control against
+// itself and report that as independent accuracy.
+void CheckChecksIndependent(const GcpFile& control, const GcpFile& checks, double default_sigma_h_m,
+                            double default_sigma_v_m);
+
 // Writes points back in the same format (OpenDroneMap's pixel convention,
 // PixelOrigin::kCentre), atomically.
 void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <fstream>
 
+#include "georef/crs.h"
 #include "libphoto/base/error.h"
 #include "tests/test_util.h"
 
@@ -207,6 +208,48 @@ TEST(GcpFile, ReadsBomCrOnlyAndPlusSigns) {
   // A sign alone, or two, is still not a number.
   Write(dir / "bad.txt", "EPSG:32632\n+-5 1 2 3 4 a.jpg\n");
   EXPECT_THROW(ReadGcpFile(dir / "bad.txt"), ParseError);
+}
+
+GcpFile PointsAt(const std::string& path, const std::string& crs,
+                 const std::vector<std::pair<std::string, Eigen::Vector3d>>& points) {
+  GcpFile file;
+  file.path = path;
+  file.crs = crs;
+  for (const auto& [name, xyz] : points) {
+    GroundPoint p;
+    p.name = name;
+    p.xyz = xyz;
+    file.points.push_back(p);
+  }
+  return file;
+}
+
+TEST(CheckChecksIndependent, TheControlFileAsTheCheckFileIsAUsageError) {
+  const GcpFile control = PointsAt("gcp.txt", "EPSG:32632",
+                                   {{"A", {384900, 5150600, 510}}, {"B", {385000, 5150700, 512}}});
+  try {
+    CheckChecksIndependent(control, control, 0.02, 0.03);
+    FAIL() << "no error";
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("2 of its 2 check points are control points of gcp.txt too: A (the same "
+                                         "name), B (the same name)"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(CheckChecksIndependent, ThePointUnderAnotherNameInAnotherCrsIsFoundAndAPointBesideItIsNot) {
+  const Eigen::Vector3d a(384900, 5150600, 510);
+  const GcpFile control = PointsAt("gcp.txt", "EPSG:32632", {{"A", a}, {"B", {385000, 5150700, 512}}});
+  // A as longitude, latitude, within 1 cm; and a target 0.5 m beside B.
+  const Geodetic g = Crs::FromString("EPSG:32632").ToGeodetic(a + Eigen::Vector3d(0.005, -0.005, 0.01));
+  const GcpFile same = PointsAt("checks.txt", "EPSG:4326", {{"CP1", {g.lon_deg, g.lat_deg, g.h_m}}});
+  EXPECT_THROW(CheckChecksIndependent(control, same, 0.02, 0.03), UsageError);
+  const GcpFile beside = PointsAt("checks.txt", "EPSG:32632", {{"CP2", {385000.5, 5150700, 512}}});
+  EXPECT_NO_THROW(CheckChecksIndependent(control, beside, 0.02, 0.03));
+  // The same plan position, 1 m higher (another target on a pole): independent.
+  const GcpFile above = PointsAt("checks.txt", "EPSG:32632", {{"CP3", {384900, 5150600, 511}}});
+  EXPECT_NO_THROW(CheckChecksIndependent(control, above, 0.02, 0.03));
 }
 
 }  // namespace

@@ -126,5 +126,85 @@ TEST(SurveyPhases, InitialSimilarityFromControlRecoversTheScale) {
   EXPECT_GT(s.report.helmert_rms_m, 0.001);
 }
 
+// The control file in EPSG:4326, longitude first (aerotri's order), or
+// latitude first (the common mistake).
+GcpFile Geographic(const GcpFile& control, bool latitude_first) {
+  GcpFile file = control;
+  file.crs = "EPSG:4326";
+  const Crs utm = Crs::FromString(control.crs);
+  for (GroundPoint& p : file.points) {
+    const Geodetic g = utm.ToGeodetic(p.xyz);
+    p.xyz = latitude_first ? Eigen::Vector3d(g.lat_deg, g.lon_deg, g.h_m) : Eigen::Vector3d(g.lon_deg, g.lat_deg, g.h_m);
+  }
+  return file;
+}
+
+bool HasFinding(const GeoreferenceReport& report, const std::string& code, std::string* message = nullptr) {
+  for (const Finding& f : report.findings) {
+    if (f.code != code) continue;
+    if (message) *message = f.message;
+    return true;
+  }
+  return false;
+}
+
+TEST(SurveyPhases, GeographicControlWithLatitudeFirstIsNamedSwappedBeforeAnyAdjustment) {
+  const SyntheticGeoref scene = Scene();
+  const GeoreferenceOptions options;
+  for (const bool swapped : {false, true}) {
+    SparseModel model = scene.tie_model;
+    const GcpFile control = Geographic(scene.control, swapped);
+    SurveyState s = StartSurvey(&model, scene.gps, &control, nullptr, options);
+    ChooseFrameAndDatum(&s);
+    AttachPriors(&s);
+    std::string message;
+    EXPECT_EQ(HasFinding(s.report, "CONTROL_OUTSIDE_SURVEY", &message), swapped) << message;
+    if (!swapped) continue;
+    EXPECT_NE(message.find("8 surveyed points lie outside"), std::string::npos) << message;
+    EXPECT_NE(message.find("Read with the first two columns swapped, every one of them lies inside the survey"),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("longitude, latitude"), std::string::npos) << message;
+  }
+}
+
+TEST(SurveyPhases, ControlNegatedIsNamedSo) {
+  const SyntheticGeoref scene = Scene();
+  SparseModel model = scene.tie_model;
+  GcpFile control = Geographic(scene.control, false);
+  for (GroundPoint& p : control.points) p.xyz.x() = -p.xyz.x();  // 7.5 W for 7.5 E
+  const GeoreferenceOptions options;
+  SurveyState s = StartSurvey(&model, scene.gps, &control, nullptr, options);
+  ChooseFrameAndDatum(&s);
+  AttachPriors(&s);
+  std::string message;
+  ASSERT_TRUE(HasFinding(s.report, "CONTROL_OUTSIDE_SURVEY", &message));
+  EXPECT_NE(message.find("Read with the first column negated"), std::string::npos) << message;
+}
+
+TEST(SurveyPhases, ControlHeightsAllZeroAreTakenAsUnknownUnlessStated) {
+  const SyntheticGeoref scene = Scene();
+  GcpFile control = scene.control;
+  for (GroundPoint& p : control.points) p.xyz.z() = 0.0;
+  for (const bool stated : {false, true}) {
+    SparseModel model = scene.tie_model;
+    GeoreferenceOptions options;
+    options.zero_heights_are_heights = stated;
+    SurveyState s = StartSurvey(&model, scene.gps, &control, nullptr, options);
+    ChooseFrameAndDatum(&s);
+    EXPECT_EQ(HasFinding(s.report, "CONTROL_HEIGHTS_ZERO"), !stated);
+    int in_plan = 0;
+    for (const SurveyedPoint& p : s.surveyed) in_plan += p.source->horizontal_only;
+    EXPECT_EQ(in_plan, stated ? 0 : static_cast<int>(control.points.size()));
+  }
+  // One real height among the zeros: heights, as given.
+  control.points[0].xyz.z() = 512.0;
+  SparseModel model = scene.tie_model;
+  const GeoreferenceOptions options;
+  SurveyState s = StartSurvey(&model, scene.gps, &control, nullptr, options);
+  ChooseFrameAndDatum(&s);
+  EXPECT_FALSE(HasFinding(s.report, "CONTROL_HEIGHTS_ZERO"));
+}
+
 }  // namespace
 }  // namespace aerotri

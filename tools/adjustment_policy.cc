@@ -62,6 +62,9 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
   cmd->add_flag("--keep-control-sigmas", a->keep_control_sigmas,
                 "Weigh control by the file's sigmas even when it scatters 3 or more times more about the model "
                 "(by default the estimate is used, and said: CONTROL_WEAKER_THAN_STATED)");
+  cmd->add_flag("--zero-heights-are-heights", a->zero_heights_are_heights,
+                "Control heights that are all exactly 0 are surveyed heights (by default they are taken as "
+                "unknown, the points used in plan only: CONTROL_HEIGHTS_ZERO)");
   cmd->add_option("--variance-components", a->variance_components,
                   "estimate: each observation group (tie points, target marks, GPS horizontal / vertical, control) "
                   "weighed by the scatter it shows, re-solved until its sigma0 is 1 (Foerstner), so that the "
@@ -97,6 +100,7 @@ void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o
   o->bundle.mark_sigma_px = a.mark_sigma_px;
   o->bundle.check_points_in_bundle = a.checkpoints_in_bundle;
   o->keep_stated_control_sigmas = a.keep_control_sigmas;
+  o->zero_heights_are_heights = a.zero_heights_are_heights;
   o->bundle.estimate_variance_components = a.variance_components == "estimate";
   o->leave_one_out = a.leave_one_out == "on";
   if (!a.gnss_lever_arm.empty()) {

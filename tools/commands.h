@@ -32,6 +32,7 @@ struct AdjustmentPolicyArgs {
   double mark_sigma_px = 0.0;  // of GCP / check marks; 0: the tie sigma
   bool checkpoints_in_bundle = false;
   bool keep_control_sigmas = false;
+  bool zero_heights_are_heights = false;
   std::string variance_components = "estimate";  // estimate, stated
   std::string leave_one_out = "off";  // on, off
   std::string camera_file;            // a calibration certificate (camera_file.h)

@@ -81,6 +81,10 @@ int main(int argc, char** argv) {
     ctx.CloseLine();
     std::cerr << "aerotri: " << e.what() << "\n";
     return 1;
+  } catch (const UsageError& e) {
+    ctx.CloseLine();
+    std::cerr << "aerotri: error: " << e.what() << "\n";
+    return 2;
   } catch (const Error& e) {
     ctx.CloseLine();
     std::cerr << "aerotri: error: " << e.what() << "\n";

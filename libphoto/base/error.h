@@ -30,6 +30,13 @@ class InvalidArgument : public Error {
   using Error::Error;
 };
 
+// A command line that asks for something contradictory (exit code 2, as a
+// usage error): e.g. the control file passed again as the check file.
+class UsageError : public Error {
+ public:
+  using Error::Error;
+};
+
 // A file that cannot be opened, read or written.
 class IoError : public Error {
  public:

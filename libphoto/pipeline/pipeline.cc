@@ -588,6 +588,10 @@ void ValidateInputs(const PipelineOptions& o) {
                  " (their measurements are skipped): " + names);
     }
   }
+  if (!o.gcp.empty() && !o.checkpoints.empty()) {
+    CheckChecksIndependent(ReadGcpFile(o.gcp, o.gcp_pixel_origin), ReadGcpFile(o.checkpoints, o.gcp_pixel_origin),
+                           o.georef.gcp_sigma_h_m, o.georef.gcp_sigma_v_m);
+  }
   // The workspace: writable, and room for it (about 40 times the photos'
   // size with the dense stage's depth maps; the sample survey used 861 MB
   // for 3.9 MB of photos at full resolution).

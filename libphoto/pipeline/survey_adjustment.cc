@@ -51,6 +51,7 @@ GeoreferenceReport AdjustSurvey(SparseModel* model, const SurveyAdjustmentInputs
                                 GeoreferenceOptions options) {
   const std::optional<GcpFile> control = ReadMarks(inputs.gcp, inputs);
   const std::optional<GcpFile> checks = ReadMarks(inputs.checkpoints, inputs);
+  if (control && checks) CheckChecksIndependent(*control, *checks, options.gcp_sigma_h_m, options.gcp_sigma_v_m);
   if (!inputs.camera_file.empty()) {
     // The certificate is in full-resolution pixels; each camera group's
     // images share a scale.

@@ -348,6 +348,7 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"gcp_sigma_h_m", g.gcp_sigma_h_m},
           {"gcp_sigma_v_m", g.gcp_sigma_v_m},
           {"keep_control_sigmas", g.keep_stated_control_sigmas},
+          {"zero_heights_are_heights", g.zero_heights_are_heights},
           {"variance_components", g.bundle.estimate_variance_components ? "estimate" : "stated"},
           {"gps_offset", ToString(g.gps_offset)},
           {"refine", refine},

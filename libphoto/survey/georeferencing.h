@@ -78,6 +78,10 @@ struct GeoreferenceOptions {
   // Keep the control file's sigmas even when the control scatters far more
   // (GeoreferenceReport::control_precision); by default the estimate is used.
   bool keep_stated_control_sigmas = false;
+  // Control whose heights are all exactly 0 (OpenDroneMap's documentation
+  // suggests 0 for an unknown height) is used in plan only, and said
+  // (CONTROL_HEIGHTS_ZERO); true: 0 is their surveyed height.
+  bool zero_heights_are_heights = false;
   GpsOffsetPolicy gps_offset = GpsOffsetPolicy::kAuto;
   // Gimbal angles by image name (DJI XMP): where the block is not nadir,
   // their pitches give its vertical (MeasureGimbalVertical), so that GPS

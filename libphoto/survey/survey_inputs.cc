@@ -66,6 +66,33 @@ void PlaceLocalFrame(SurveyState* s) {
   for (auto& [name, fix] : s->gps) fix.position = frame_crs.ToGeodetic(*fix.local_xyz);
 }
 
+// Control whose heights are all exactly zero, three points or more: a
+// file's way of saying "unknown" (OpenDroneMap's documentation suggests it,
+// and hand-held GNSS lists do it). Fitted to that plane the block would tilt
+// and sink to it; the points are used in plan only instead, and said.
+void TakeZeroHeightsAsUnknown(SurveyState* s) {
+  if (!s->control || s->Options().zero_heights_are_heights) return;
+  int with_height = 0;
+  for (const GroundPoint& p : s->control->points) {
+    if (p.horizontal_only) continue;
+    if (p.xyz.z() != 0.0) return;
+    ++with_height;
+  }
+  if (with_height < 3) return;
+  s->control_in_plan = *s->control;
+  for (GroundPoint& p : s->control_in_plan->points) {
+    p.horizontal_only = true;
+    p.xyz.z() = std::numeric_limits<double>::quiet_NaN();
+  }
+  s->control = &*s->control_in_plan;
+  s->report.findings.push_back(Finding::Warning(
+      "CONTROL_HEIGHTS_ZERO",
+      "all " + std::to_string(with_height) + " control points of " + s->control->path +
+          " have a height of exactly 0, which files use for an unknown height: they are used in plan only, their "
+          "heights left to the adjustment (the vertical datum comes from the GPS); if 0 is their surveyed height, "
+          "say so with --zero-heights-are-heights"));
+}
+
 // The control and check points in WGS84. A point without a surveyed height
 // is converted at the median height of the file's others (the horizontal
 // position barely depends on it).
@@ -177,46 +204,113 @@ void AttachGpsPriors(SurveyState* s) {
 // from every GPS camera position than the photos can see (three flying
 // heights) plus five GPS sigmas and 50 m. A control file in another zone,
 // hemisphere or CRS, or with its axes swapped or negated, ends here; its
-// points must not pull the block.
-void ExcludeControlOutsideSurvey(SurveyState* s) {
-  std::vector<Eigen::Vector3d> cameras;
-  std::vector<double> sigmas, heights;
-  for (const Image& image : s->model->images) {
-    if (!image.registered || !image.gps_prior) continue;
-    cameras.push_back(image.gps_prior->position);
-    sigmas.push_back(image.gps_prior->sigma_h_m);
-    heights.push_back(image.gps_prior->position.z());
-  }
-  if (cameras.size() < 3 || s->local) return;
-  auto median = [](std::vector<double> v) {
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
-  const LocalFrame& frame = s->Frame();
-  std::vector<double> ground;
-  for (const SurveyedPoint& p : s->surveyed) {
-    if (!p.source->horizontal_only) ground.push_back(frame.EnuFromGeodetic(p.geodetic).z());
-  }
-  const double flying = ground.empty() ? 0.0 : std::abs(median(heights) - median(ground));
-  const double limit = 3.0 * flying + 5.0 * median(sigmas) + 50.0;
-  std::vector<std::string> far;
-  for (SurveyedPoint& p : s->surveyed) {
-    const Eigen::Vector3d at = frame.EnuFromGeodetic(p.geodetic);
+// points must not pull the block. The flying height is taken from geodetic
+// heights (cameras' GPS against the surveyed points'), which a point
+// thousands of kilometres off leaves as they are, where its height in the
+// survey's tangent plane would sink by the earth's curvature and widen the
+// limit until it let the point in.
+struct OutsideTest {
+  std::vector<Eigen::Vector3d> cameras;  // ENU
+  double limit_m = 0.0;
+  bool usable = false;
+  // Horizontal distance to the nearest camera position.
+  double Nearest(const Eigen::Vector3d& enu) const {
     double nearest = std::numeric_limits<double>::infinity();
-    for (const Eigen::Vector3d& c : cameras) nearest = std::min(nearest, (at - c).head<2>().norm());
-    if (nearest <= limit) continue;
+    for (const Eigen::Vector3d& c : cameras) nearest = std::min(nearest, (enu - c).head<2>().norm());
+    return nearest;
+  }
+};
+
+double MedianOf(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+OutsideTest MakeOutsideTest(const SurveyState& s) {
+  OutsideTest t;
+  std::vector<double> sigmas, heights;
+  for (const Image& image : s.model->images) {
+    if (!image.registered || !image.gps_prior) continue;
+    t.cameras.push_back(image.gps_prior->position);
+    sigmas.push_back(image.gps_prior->sigma_h_m);
+    heights.push_back(s.gps.at(image.name).position.h_m);
+  }
+  if (t.cameras.size() < 3 || s.local) return t;
+  std::vector<double> ground;
+  for (const SurveyedPoint& p : s.surveyed) {
+    if (!p.source->horizontal_only) ground.push_back(p.geodetic.h_m);
+  }
+  const double flying = ground.empty() ? 0.0 : std::abs(MedianOf(heights) - MedianOf(ground));
+  t.limit_m = 3.0 * flying + 5.0 * MedianOf(sigmas) + 50.0;
+  t.usable = true;
+  return t;
+}
+
+// What would put every far point inside the survey: its first two
+// coordinates swapped, or one or both of them negated; "" when none does.
+std::string AxisDiagnosis(const SurveyState& s, const OutsideTest& test, const std::vector<const SurveyedPoint*>& far) {
+  struct Reading {
+    const char* what;
+    double sx, sy;
+    bool swap;
+  };
+  const Reading readings[] = {{"the first two columns swapped", 1, 1, true},
+                              {"the first column negated", -1, 1, false},
+                              {"the second column negated", 1, -1, false},
+                              {"both columns negated", -1, -1, false},
+                              {"the columns swapped and the first negated", -1, 1, true},
+                              {"the columns swapped and the second negated", 1, -1, true}};
+  for (const Reading& r : readings) {
+    bool all_inside = true;
+    for (const SurveyedPoint* p : far) {
+      const Crs& crs = p->role == PointRole::kControl ? *s.control_crs : *s.check_crs;
+      Eigen::Vector3d xyz = p->source->xyz;
+      if (p->source->horizontal_only) xyz.z() = p->geodetic.h_m;
+      if (r.swap) std::swap(xyz.x(), xyz.y());
+      xyz.x() *= r.sx;
+      xyz.y() *= r.sy;
+      try {
+        all_inside = all_inside && test.Nearest(s.Frame().EnuFromGeodetic(crs.ToGeodetic(xyz))) <= test.limit_m;
+      } catch (const Error&) {
+        all_inside = false;  // not a position at all read so
+      }
+      if (!all_inside) break;
+    }
+    if (!all_inside) continue;
+    const Crs& crs = far.front()->role == PointRole::kControl ? *s.control_crs : *s.check_crs;
+    return std::string(" Read with ") + r.what + ", every one of them lies inside the survey: the file's axes are " +
+           (r.swap ? "swapped" : "negated") +
+           (crs.IsGeographic() ? " (a geographic CRS's coordinates are longitude, latitude in aerotri's files, the "
+                                 "normalised axis order; west and south negative)"
+                               : " (easting first, then northing)") +
+           ".";
+  }
+  return "";
+}
+
+void ExcludeControlOutsideSurvey(SurveyState* s) {
+  const OutsideTest test = MakeOutsideTest(*s);
+  if (!test.usable) return;
+  std::vector<std::string> far;
+  std::vector<const SurveyedPoint*> far_points;
+  for (SurveyedPoint& p : s->surveyed) {
+    const double nearest = test.Nearest(s->Frame().EnuFromGeodetic(p.geodetic));
+    if (nearest <= test.limit_m) continue;
     char text[160];
     std::snprintf(text, sizeof text, "%.0f m from the nearest GPS camera position (the photos see %.0f m)",
-                  nearest, limit);
+                  nearest, test.limit_m);
     p.excluded = std::string("outside the survey: ") + text;
     far.push_back(p.source->name);
+    far_points.push_back(&p);
   }
   if (far.empty()) return;
+  const std::string diagnosis = AxisDiagnosis(*s, test, far_points);
   s->report.findings.push_back(Finding::Error(
       "CONTROL_OUTSIDE_SURVEY",
       std::to_string(far.size()) + " surveyed points lie outside the photographed area (farther from every GPS "
-      "camera position than three flying heights and five GPS sigmas): " + JoinNames(far) +
-      "; left out. A wrong CRS line, zone or hemisphere, swapped or negated axes, or another site's file?",
+      "camera position than three flying heights and five GPS sigmas): " + JoinNames(far) + "; left out." +
+          (diagnosis.empty() ? " A wrong CRS line, zone or hemisphere, swapped or negated axes, or another site's file?"
+                             : diagnosis),
       far));
 }
 
@@ -347,6 +441,7 @@ std::optional<Finding> CheckDuplicatedMarks(const GcpFile* control, const GcpFil
 }
 
 void ChooseFrameAndDatum(SurveyState* s) {
+  TakeZeroHeightsAsUnknown(s);
   if (s->control) s->control_crs = Crs::FromString(s->control->crs);
   if (s->checks) s->check_crs = Crs::FromString(s->checks->crs);
   if (!s->Options().output_crs.empty()) s->requested_crs = Crs::FromString(s->Options().output_crs);

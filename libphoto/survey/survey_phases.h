@@ -64,6 +64,7 @@ struct SurveyState {
   const GcpFile* control = nullptr;
   const GcpFile* checks = nullptr;
   const GeoreferenceOptions* options = nullptr;
+  std::optional<GcpFile> control_in_plan;  // the control with zero heights taken as unknown (control points here)
   std::optional<SparseModel> start;  // the model as given, for leave-one-out
   GeoreferenceReport report;         // every phase adds its part
 
