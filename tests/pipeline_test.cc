@@ -411,6 +411,11 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
   EXPECT_NEAR(after["check_points"]["rmse_3d_m"].get<double>(), before["check_points"]["rmse_3d_m"].get<double>(),
               1e-6);
   EXPECT_TRUE(after["dsm"]["check_points"].contains("rmse_z_m"));
+  // The check says what made it, beside the adjustment's provenance.
+  ASSERT_TRUE(after["provenance"].contains("check")) << after["provenance"].dump();
+  EXPECT_FALSE(after["provenance"]["check"].value("date_utc", "").empty());
+  EXPECT_EQ(after["provenance"]["check"]["options"]["leave_one_out"], false);
+  EXPECT_EQ(after["provenance"]["check"]["options"]["checkpoints"].get<std::string>().size(), 16u);
   // A check-point file naming an image the survey does not have is reported, not fatal.
   std::ofstream(o.workspace / "odd_checks.txt") << "EPSG:32632\n384900 5150700 500 10 10 NOT_THERE.JPG X1\n";
   o.checkpoints = o.workspace / "odd_checks.txt";

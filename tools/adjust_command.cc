@@ -18,6 +18,7 @@
 #include "libphoto/base/directory_lock.h"
 #include "libphoto/base/error.h"
 #include "libphoto/pipeline/survey_adjustment.h"
+#include "libphoto/pipeline/workspace.h"
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/ingest/image_metadata.h"
 #include "libphoto/io/colmap_text.h"
@@ -138,6 +139,30 @@ std::map<std::string, GimbalAttitude> GimbalAnglesOf(const SparseModel& model, c
     }
   }
   return gimbal;
+}
+
+// What made an adjust report: the process, and the options and inputs as
+// the georeference stage fingerprints them (content hashes of the files).
+nlohmann::json AdjustProvenance(const AdjustArgs& args, const GeoreferenceOptions& options, PixelOrigin origin,
+                                const ToolContext& ctx) {
+  PipelineOptions o;
+  o.workspace = args.output;
+  o.gcp = args.gcp;
+  o.checkpoints = args.checkpoints;
+  o.camera_file = args.policy.camera_file;
+  o.gcp_pixel_origin = origin;
+  o.georef = options;
+  nlohmann::json georeference = GeoreferenceFingerprint(o);
+  georeference.erase("ingest");  // no ingest stage: the model and positions below instead
+  nlohmann::json p = ProcessProvenance(VersionString(), ctx.command_line);
+  p["options"] = {{"georeference", georeference},
+                  {"model", args.model_dir.empty() ? "" : fs::absolute(args.model_dir).string()},
+                  {"measurements", ContentHash(args.measurements)},
+                  {"images", args.images_dir.empty() ? "" : fs::absolute(args.images_dir).string()},
+                  {"gps_csv", ContentHash(args.gps_csv)},
+                  {"gps_altitude", args.gps_altitude},
+                  {"threads", args.threads}};
+  return p;
 }
 
 // The stdout line of figures. An RMSE over no points is not a figure:
@@ -267,6 +292,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   WriteColmapText(model, output / "model");
   nlohmann::json json = GeoreferenceReportJson(report, model);
   if (initial) json["initial_orientation"] = InitialOrientationJson(*initial);
+  json["provenance"] = AdjustProvenance(args, options, origin, ctx);
   // The certificate's pixel pitch states the calibration in mm as well.
   if (!args.policy.camera_file.empty() && json.contains("adjustment")) {
     const double pitch = ReadCameraFile(args.policy.camera_file).pixel_size_mm;

@@ -103,6 +103,7 @@ struct RoundResult {
   // ObservationGroup; rows 0 where the group is absent).
   std::array<internal::GroupRedundancy, kNumObservationGroups> groups;
   std::string report;         // the aerotri engine's report (keep_solver_report)
+  std::vector<std::vector<int>> refined_params;  // per camera group, as configured (BundleConfig::refined)
 };
 
 // The a-priori covariance of every refined intrinsics block and its
@@ -986,6 +987,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   result.num_points = config.num_points;
   result.skipped_points = config.skipped_points;
   result.num_images = config.num_images;
+  result.refined_params = config.refined;
   const Pose pose_a = config.image_a >= 0 ? model->images[config.image_a].pose : Pose();
   ProblemBlocks blocks = MakeProblemBlocks(*model, config);
 
@@ -1325,6 +1327,34 @@ void StartGnssParameters(BundleRun* run) {
   }
 }
 
+// What a solve refined, per camera group in use: "all", "none", the
+// parameters' names when every group refines the same, else per group
+// ("camera 1: f,cx,cy; camera 2: none"). A calibration certificate's fixed
+// parameters and groups seen by too few images are not refined.
+std::string DescribeRefined(const SparseModel& model, const std::vector<std::vector<int>>& refined) {
+  std::vector<char> used(model.cameras.size(), 0);
+  for (const Image& image : model.images) {
+    if (image.registered) used[image.camera] = 1;
+  }
+  std::vector<std::pair<int, std::string>> groups;
+  for (size_t c = 0; c < model.cameras.size() && c < refined.size(); ++c) {
+    if (!used[c]) continue;
+    const CameraModelInfo& info = model.cameras[c].info();
+    std::string names;
+    for (int k : refined[c]) names += (names.empty() ? "" : ",") + info.param_names[k];
+    if (static_cast<int>(refined[c].size()) == info.num_params()) names = "all";
+    if (refined[c].empty()) names = "none";
+    groups.push_back({model.cameras[c].id, names});
+  }
+  if (groups.empty()) return "none";
+  bool same = true;
+  for (const auto& g : groups) same &= g.second == groups.front().second;
+  if (same) return groups.front().second;
+  std::string out;
+  for (const auto& [id, names] : groups) out += (out.empty() ? "" : "; ") + ("camera " + std::to_string(id) + ": " + names);
+  return out;
+}
+
 int IterationsOf(const RoundResult& result) { return std::max(static_cast<int>(result.ceres.iterations.size()) - 1, 0); }
 
 // A solve's figures into the summary (its counts, σ0, cost and times).
@@ -1339,6 +1369,8 @@ void Absorb(BundleRun* run, const RoundResult& result, int round, const std::str
   summary.sigma0 = summary.redundancy > 0 ? std::sqrt(2.0 * result.ceres.final_cost / summary.redundancy) : 0.0;
   summary.intrinsics_precision = result.precision;
   summary.covariance_note = result.covariance_note;
+  summary.refined_intrinsics = DescribeRefined(*run->model, result.refined_params);
+  summary.refined_params = result.refined_params;
   summary.gps_offset_m = run->gps_offsets[0];
   if (options.gps_offset_per_flight) summary.gps_flight_offsets_m = run->gps_offsets;
   if (round == 0) {

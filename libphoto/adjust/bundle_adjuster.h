@@ -410,7 +410,10 @@ struct BundleSummary {
 
   std::string linear_solver;
   std::string gauge;            // what anchors the datum
+  // What the last solve refined ("all", "none", names, or per camera
+  // group), and per camera group the refined parameters' indices.
   std::string refined_intrinsics;
+  std::vector<std::vector<int>> refined_params;
 
   double setup_time_s = 0.0;
   double solve_time_s = 0.0;

@@ -1480,6 +1480,10 @@ void CheckSurvey(const PipelineOptions& o) {
   json report = ReadJson(o.workspace / "report.json", "georeference");
   if (o.georef.leave_one_out) LeaveOneOutOnSurvey(o, &report);
   if (!o.checkpoints.empty()) CheckPointsOnSurvey(o, &report);
+  // What checked it, beside what adjusted it (provenance's own fields).
+  json checked = ProcessProvenance(o.software_version, o.command_line);
+  checked["options"] = {{"checkpoints", ContentHash(o.checkpoints)}, {"leave_one_out", o.georef.leave_one_out}};
+  report["provenance"]["check"] = checked;
   WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
   PipelineOptions again = o;
   again.force = true;

@@ -383,16 +383,20 @@ nlohmann::json OrthoFingerprint(const PipelineOptions& o) {
           {"ortho_compress", o.ortho_compress},         {"ortho_cog", o.ortho_cog}};
 }
 
-nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options) {
+nlohmann::json ProcessProvenance(const std::string& software, const std::vector<std::string>& command_line) {
   char date[32] = "";
   const std::time_t now = std::time(nullptr);
   std::tm utc{};
   if (gmtime_r(&now, &utc)) std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", &utc);
-  return {{"software", o.software_version.empty() ? std::string("aerotri (library)") : o.software_version},
-          {"command_line", o.command_line},
-          {"date_utc", date},
-          {"options",
-           {{"ingest", ingest_options}, {"georeference", GeoreferenceFingerprint(o)}, {"threads", o.num_threads}}}};
+  return {{"software", software.empty() ? std::string("aerotri (library)") : software},
+          {"command_line", command_line},
+          {"date_utc", date}};
+}
+
+nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options) {
+  nlohmann::json p = ProcessProvenance(o.software_version, o.command_line);
+  p["options"] = {{"ingest", ingest_options}, {"georeference", GeoreferenceFingerprint(o)}, {"threads", o.num_threads}};
+  return p;
 }
 
 bool StageIsCurrent(const PipelineOptions& o, const std::string& stage, const fs::path& record,

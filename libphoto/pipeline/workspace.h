@@ -58,6 +58,9 @@ nlohmann::json OrthoFingerprint(const PipelineOptions& o);
 // have run in another process), the georeference stage's own. The dense
 // stage's are in report.json dense.options (from dense.json).
 nlohmann::json Provenance(const PipelineOptions& o, const nlohmann::json& ingest_options);
+// The process that made a report: software version, command line and UTC
+// date (Provenance's first part; `aerotri adjust` and `check` record it too).
+nlohmann::json ProcessProvenance(const std::string& software, const std::vector<std::string>& command_line);
 // "" when equal, else "key: recorded -> now; ..." (only differing keys).
 std::string FingerprintChanges(const nlohmann::json& recorded, const nlohmann::json& now);
 // Whether a stage's product, recorded in record (under key; "" for the

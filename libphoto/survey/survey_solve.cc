@@ -19,6 +19,14 @@ bool FocalPriorsForAll(const SparseModel& model, const BundleOptions& bundle) {
   return priors;
 }
 
+// Whether the last solve refined camera group c's focal length.
+bool FocalRefined(const BundleSummary& summary, const SparseModel& model, size_t c) {
+  if (c >= summary.refined_params.size()) return true;  // not recorded: as asked
+  const int f = model.cameras[c].info().focal_params.at(0);
+  const std::vector<int>& refined = summary.refined_params[c];
+  return std::find(refined.begin(), refined.end(), f) != refined.end();
+}
+
 // The focal lengths the block does not determine (sigma f beyond
 // weak_focal_rel of f), by camera group, and whether each has a prior to
 // hold it at. Without a covariance the geometry decides: nadir photos of
@@ -57,7 +65,7 @@ WeakFocal FindWeakFocal(SurveyState* s) {
     if (report.geometry.nadir_flat_single_altitude) {
       const std::vector<char> used = CamerasInUse(model);
       for (size_t c = 0; c < used.size(); ++c) {
-        if (!used[c]) continue;
+        if (!used[c] || !FocalRefined(report.bundle, model, c)) continue;  // held (a certificate): not weak
         weak.cameras.push_back("camera " + std::to_string(model.cameras[c].id));
         weak.all_have_priors &= c < bundle.focal_prior_px.size() && bundle.focal_prior_px[c] > 0.0;
       }
