@@ -61,15 +61,17 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
                 "triangulation does; default: independent, triangulated afterwards with the cameras held");
   cmd->add_flag("--keep-control-sigmas", a->keep_control_sigmas,
                 "Weigh control by the file's sigmas even when it scatters 3 or more times more about the model "
-                "(by default the estimate is used, and said: CONTROL_WEAKER_THAN_STATED)");
+                "(by default the estimate is used where the sigmas are defaults, and said: CONTROL_WEAKER_THAN_STATED)");
   cmd->add_flag("--zero-heights-are-heights", a->zero_heights_are_heights,
                 "Control heights that are all exactly 0 are surveyed heights (by default they are taken as "
                 "unknown, the points used in plan only: CONTROL_HEIGHTS_ZERO)");
   cmd->add_option("--variance-components", a->variance_components,
-                  "estimate: each observation group (tie points, target marks, GPS horizontal / vertical, control) "
-                  "weighed by the scatter it shows, re-solved until its sigma0 is 1 (Foerstner), so that the "
-                  "posterior sigmas are honest; stated: the stated sigmas kept (the groups' sigma0 still reported)")
-      ->check(CLI::IsMember({"estimate", "stated"}))
+                  "auto: each observation group (tie points, target marks, GPS horizontal / vertical, control) "
+                  "weighed by the scatter it shows, re-solved until its sigma0 is 1 (Foerstner), except groups "
+                  "whose every sigma the input files state (sigma_px= on every mark, sigmas on every control "
+                  "point), held as stated; estimate: every group estimated; stated: the stated sigmas kept "
+                  "(the groups' sigma0 still reported)")
+      ->check(CLI::IsMember({"auto", "estimate", "stated"}))
       ->capture_default_str();
   cmd->add_option("--leave-one-out", a->leave_one_out,
                   "on: adjust once more per control point with it withheld, and report its residual as a "
@@ -101,7 +103,8 @@ void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o
   o->bundle.check_points_in_bundle = a.checkpoints_in_bundle;
   o->keep_stated_control_sigmas = a.keep_control_sigmas;
   o->zero_heights_are_heights = a.zero_heights_are_heights;
-  o->bundle.estimate_variance_components = a.variance_components == "estimate";
+  o->bundle.estimate_variance_components = a.variance_components != "stated";
+  o->hold_stated_sigmas = a.variance_components == "auto";
   o->leave_one_out = a.leave_one_out == "on";
   if (!a.gnss_lever_arm.empty()) {
     const auto l = ParseVector3(a.gnss_lever_arm);

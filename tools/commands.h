@@ -33,7 +33,7 @@ struct AdjustmentPolicyArgs {
   bool checkpoints_in_bundle = false;
   bool keep_control_sigmas = false;
   bool zero_heights_are_heights = false;
-  std::string variance_components = "estimate";  // estimate, stated
+  std::string variance_components = "auto";  // auto, estimate, stated
   std::string leave_one_out = "off";  // on, off
   std::string camera_file;            // a calibration certificate (camera_file.h)
   std::string gnss_lever_arm;         // "x,y,z" metres in the camera frame; empty: none

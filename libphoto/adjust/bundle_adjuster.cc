@@ -1479,10 +1479,13 @@ void VarianceComponentsOf(const BundleRun& run, const RoundResult& pass, const B
     vc.redundancy = gr.rows - gr.leverage;
     vc.sigma0 = vc.redundancy > 0.5 ? std::sqrt(gr.sum_squares / vc.redundancy)
                                     : std::numeric_limits<double>::quiet_NaN();
-    if (iteration == 0) (*estimable)[g] = vc.redundancy >= BundleOptions::kMinGroupRedundancy;
+    if (iteration == 0) {
+      (*estimable)[g] = vc.redundancy >= BundleOptions::kMinGroupRedundancy && !options.hold_stated_sigmas[g];
+    }
     vc.scale = weighted.sigma_scale[g];
     vc.stated_sigma = stated[g];
     vc.estimated = options.estimate_variance_components && (*estimable)[g];
+    vc.held = options.hold_stated_sigmas[g];
     components->push_back(vc);
     // Settled within the tolerance or one standard error of the group's σ0
     // (1 / sqrt(2 r_g)), whichever is larger.

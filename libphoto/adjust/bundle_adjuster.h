@@ -249,6 +249,10 @@ struct BundleOptions {
   // 22 %) keeps its stated sigmas. Without it the factors are
   // still computed and reported (BundleSummary::variance_components).
   bool estimate_variance_components = false;
+  // Groups held at their stated sigmas while the others are estimated (a
+  // survey's own stochastic model, stated observation by observation in its
+  // files); their factors are still reported.
+  std::array<bool, kNumObservationGroups> hold_stated_sigmas = {false, false, false, false, false};
   int max_variance_component_iterations = 8;
   double variance_component_tolerance = 0.02;
   static constexpr double kMinGroupRedundancy = 10.0;
@@ -341,6 +345,7 @@ struct VarianceComponent {
   double sigma0 = 0.0;
   double scale = 1.0;       // BundleOptions::sigma_scale as solved
   bool estimated = false;   // the scale was estimated (not given)
+  bool held = false;        // held at its stated sigmas (BundleOptions::hold_stated_sigmas)
   // The group's stated sigma (median over its observations; px for image
   // measurements, m for GPS and control) and what the data shows:
   // stated × scale × sigma0.

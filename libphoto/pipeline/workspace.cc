@@ -349,7 +349,9 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"gcp_sigma_v_m", g.gcp_sigma_v_m},
           {"keep_control_sigmas", g.keep_stated_control_sigmas},
           {"zero_heights_are_heights", g.zero_heights_are_heights},
-          {"variance_components", g.bundle.estimate_variance_components ? "estimate" : "stated"},
+          {"variance_components", !g.bundle.estimate_variance_components ? "stated"
+                                  : g.hold_stated_sigmas              ? "auto"
+                                                                      : "estimate"},
           {"gps_offset", ToString(g.gps_offset)},
           {"refine", refine},
           {"loss", ToString(g.bundle.loss)},

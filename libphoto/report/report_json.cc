@@ -44,6 +44,11 @@ nlohmann::json PointsJson(const std::vector<GroundPointResult>& points, const Ac
         pj["sigma_y_m"] = p.sigma_m.y();
         pj["sigma_z_m"] = p.sigma_m.z();
       }
+      if (p.tested) {
+        pj["predicted_sigma_m"] = {p.predicted_sigma_m.x(), p.predicted_sigma_m.y(), p.predicted_sigma_m.z()};
+        pj["w"] = {p.w.x(), p.w.y(), p.w.z()};
+        pj["rejected"] = p.rejected;
+      }
     } else {
       pj["why_not"] = p.why_not;
     }
@@ -159,7 +164,8 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
     vc["note"] = "per observation group: sigma0 = sqrt(v'Pv / r_g), r_g the group's share of the redundancy "
                  "(Foerstner); estimated_sigma = stated_sigma * scale * sigma0 is what the data show. Estimated: "
                  "each group weighed by its own estimate (scale) and the block solved again until every sigma0 "
-                 "is 1, so the posterior sigmas are honest; stated: the stated sigmas kept and every covariance "
+                 "is 1, so the posterior sigmas are honest; held_as_stated: a group whose every sigma the survey's "
+                 "files state, kept at them; stated: the stated sigmas kept and every covariance "
                  "scaled by the one sigma0^2";
     nlohmann::json groups = nlohmann::json::array();
     for (const VarianceComponent& c : s.variance_components) {
@@ -173,7 +179,8 @@ nlohmann::json BundleSummaryJson(const BundleSummary& s, const SparseModel& mode
                         {"scale", c.scale},
                         {"estimated_sigma", std::isfinite(c.sigma0) ? nlohmann::json(c.EstimatedSigma())
                                                                     : nlohmann::json(nullptr)},
-                        {"estimated", c.estimated}});
+                        {"estimated", c.estimated},
+                        {"held_as_stated", c.held}});
     }
     vc["groups"] = groups;
     j["variance_components"] = vc;
@@ -391,7 +398,8 @@ void AddDatumAndGnss(const GeoreferenceReport& r, nlohmann::json* out) {
                               {"points", cp.points},
                               {"stated_m", cp.stated_m},
                               {"estimated_m", cp.estimated_m},
-                              {"adopted", cp.adopted}};
+                              {"adopted", cp.adopted},
+                              {"judged_by_variance_component", cp.deferred}};
   }
   const GpsVersusControl& versus = r.gps_vs_control;
   if (versus.measured) {
@@ -527,6 +535,17 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
                      {"height_reference", "WGS84 ellipsoid"}};
   j["control_points"] = PointsJson(r.control, r.control_stats, r.residuals_in_crs_units);
   j["check_points"] = PointsJson(r.check, r.check_stats, r.residuals_in_crs_units);
+  if (r.check_test.tests > 0) {
+    j["check_points"]["test"] = {
+        {"note", "each residual per axis over its predicted sigma, the root-sum-square of its posterior sigma and "
+                 "its survey's (w); rejected above the critical value of the family-wise size over all the axis "
+                 "tests (Sidak)"},
+        {"tests", r.check_test.tests},
+        {"family_alpha", r.check_test.family_alpha},
+        {"critical_value", r.check_test.critical_value},
+        {"predicted_from", r.check_test.posterior ? "posterior covariance and survey sigmas"
+                                                  : "survey and datum sigmas (no posterior covariance)"}};
+  }
   const AsprsStatements check = AsprsStatements::From(r.check_stats);
   j["asprs"] = {
       {"based_on", r.check_stats.count > 0 ? "check points" : "no check points"},

@@ -21,8 +21,9 @@
 //   CONTROL_WEAKER_THAN_STATED warning  control scatter several times its stated sigmas (the estimate is used)
 //   SIGMAS_OPTIMISTIC          warning  an observation group (ties, marks, GPS) scatters 3+ times its stated sigma
 //   CONTROL_OUTSIDE_SURVEY     error    surveyed points outside the photographed area (left out)
-//   CHECK_POINTS_FAR           warning  check points beyond what the datum allows;
-//                              error    when more than half of them are
+//   CHECK_POINTS_FAR           warning  check points beyond their predicted sigmas (w-test);
+//                              error    most of them far beyond (a misplaced survey)
+//   CHECK_POINTS_OFFSET        error    the check points share an offset far beyond their sigmas
 //   PRIORS_INCONSISTENT        warning  priors left out of the initial fit
 //   DOME                       warning  vertical residuals domed across the block
 //   MARK_BLUNDER               warning  Baarda's w-test rejects a target mark at the family-wise
@@ -71,6 +72,17 @@ struct QualityGates {
   // GSD that no sigma here states).
   double check_sigma_multiple = 5.0;
   double min_check_threshold_m = 0.1;
+  // Each check point's residual, per axis, over its full predicted sigma
+  // (the posterior covariance of its adjusted or triangulated position plus
+  // its survey's): rejected beyond the critical value of this family-wise
+  // size over all the check points' tests (CHECK_POINTS_FAR, a warning).
+  double check_family_alpha = 0.01;
+  // The survey misplaced against its check points (an error): more than half
+  // of them rejected, and either a common offset beyond this many predicted
+  // sigmas that explains them (CHECK_POINTS_OFFSET), or normalised residuals
+  // beyond check_gross_multiple (CHECK_POINTS_FAR).
+  double check_offset_multiple = 10.0;
+  double check_gross_multiple = 20.0;
   // A significant dome (DomeTest::significant) larger than this many GSD is a warning.
   double max_dome_gsd = 2.0;
   // Data snooping: MARK_BLUNDER when the largest |w| of the marks is

@@ -76,8 +76,17 @@ struct GeoreferenceOptions {
   // least 0.5 m.
   double helmert_inlier_m = 0.0;
   // Keep the control file's sigmas even when the control scatters far more
-  // (GeoreferenceReport::control_precision); by default the estimate is used.
+  // (GeoreferenceReport::control_precision); by default the estimate is used
+  // where the sigmas are defaults, and where the file states them, the
+  // adjustment's own variance component for the control decides.
   bool keep_stated_control_sigmas = false;
+  // With variance components estimated (bundle.estimate_variance_components):
+  // observation groups whose every sigma is stated in the survey's files
+  // (sigma_px= on every mark or tie, sigmas on every control point) are held
+  // at them, the stochastic model as the survey states it (a published
+  // block's convention); the groups with default sigmas (matched ties, EXIF
+  // GPS) are estimated. false: every group with enough redundancy estimated.
+  bool hold_stated_sigmas = true;
   // Control whose heights are all exactly 0 (OpenDroneMap's documentation
   // suggests 0 for an unknown height) is used in plan only, and said
   // (CONTROL_HEIGHTS_ZERO); true: 0 is their surveyed height.
@@ -132,6 +141,14 @@ struct GroundPointResult {
   // bundle) or triangulated (independent check) position, on the axes of d_m.
   bool has_precision = false;
   Eigen::Vector3d sigma_m = Eigen::Vector3d::Zero();
+  // Check points (CheckPointGates): each residual over its full predicted
+  // sigma, the posterior sigma (sigma_m) and the survey's own combined
+  // (predicted_sigma_m), per axis; rejected beyond the family-wise critical
+  // value (GeoreferenceReport::check_test).
+  bool tested = false;
+  Eigen::Vector3d predicted_sigma_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d w = Eigen::Vector3d::Zero();
+  bool rejected = false;
 };
 
 // Baarda's w-test of one target mark (MarkTest), by name.
@@ -283,6 +300,11 @@ struct GeoreferenceReport {
     double stated_m = 0.0;
     double estimated_m = 0.0;
     bool adopted = false;
+    // The scatter was beyond 3 times the stated sigmas, but the file states
+    // them: the adjustment's variance component for the control, which
+    // allows for the block's own precision at the control (its redundancy
+    // share), decides instead of the free network's scatter.
+    bool deferred = false;
   } control_precision;
   BlockGeometry geometry;         // after the initial similarity
   bool check_points_in_bundle = false;  // check points as free points of the bundle
@@ -306,6 +328,14 @@ struct GeoreferenceReport {
   // gates.mark_family_alpha over all mark_tests (at 0.1 % per test, a clean
   // survey of 800 marks, 1,600 tests, expects 1.6 of them beyond 3.29).
   std::vector<MarkResult> marks;
+  // The check points' test (CheckPointGates): |w| of each axis against the
+  // critical value of the family-wise size over all their tests (Sidak).
+  struct CheckTest {
+    int tests = 0;
+    double family_alpha = 0.01;
+    double critical_value = 0.0;
+    bool posterior = false;  // predicted from the posterior covariance (else the datum's sigmas)
+  } check_test;
   double w_critical = 3.29;
   int mark_tests = 0;
   double mark_family_alpha = 0.01;

@@ -119,20 +119,39 @@ void ReprojectionGates(const SparseModel& model, const QualityGates& gates, Geor
   }
 }
 
+// The factor from a group's stated sigmas to what the adjustment estimated
+// for it (1 where it was not estimated).
+double EstimatedFactor(const GeoreferenceReport& report, ObservationGroup group) {
+  for (const VarianceComponent& vc : report.bundle.variance_components) {
+    if (vc.group == group && vc.estimated && std::isfinite(vc.sigma0) && vc.sigma0 > 0.0) {
+      return vc.scale * vc.sigma0;
+    }
+  }
+  return 1.0;
+}
+
 void GpsGates(const QualityGates& gates, GeoreferenceReport* report) {
   std::vector<std::string> gps_bad;
   int with_gps = 0;
+  // Judged against the sigmas the adjustment estimated for the GPS, where
+  // it did: a poor GPS is not an inconsistent one.
+  const double fh = EstimatedFactor(*report, ObservationGroup::kGpsHorizontal);
+  const double fv = EstimatedFactor(*report, ObservationGroup::kGpsVertical);
   for (const CameraResult& c : report->cameras) {
     if (!c.has_prior || c.prior_rejected) continue;
     ++with_gps;
-    const double h = c.d_enu_m.head<2>().norm() / c.sigma_h_m;
-    const double v = std::abs(c.d_enu_m.z()) / c.sigma_v_m;
+    const double h = c.d_enu_m.head<2>().norm() / (fh * c.sigma_h_m);
+    const double v = std::abs(c.d_enu_m.z()) / (fv * c.sigma_v_m);
     if (h > gates.gps_sigma_multiple || v > gates.gps_sigma_multiple) gps_bad.push_back(c.name);
   }
   if (gps_bad.empty()) return;
   const std::string text = std::to_string(gps_bad.size()) + " of " + std::to_string(with_gps) +
                            " cameras end farther from their GPS than " + Fixed(gates.gps_sigma_multiple, 0) +
-                           " sigma: " + JoinNames(gps_bad);
+                           (fh != 1.0 || fv != 1.0 ? " sigma as the adjustment estimated it (" + Fixed(fh, 1) +
+                                                         " and " + Fixed(fv, 1) +
+                                                         " times the stated, horizontally and vertically)"
+                                                   : std::string(" sigma")) +
+                           ": " + JoinNames(gps_bad);
   if (gps_bad.size() > gates.max_gps_inconsistent_fraction * with_gps) {
     report->findings.push_back(Finding::Error(
         "GPS_MOSTLY_INCONSISTENT",
@@ -158,40 +177,133 @@ std::vector<std::string> ControlPointsBeyondSigmas(const SparseModel& model, con
   return control_bad;
 }
 
-// Check points against what the datum allows: their own survey sigma and
-// the sigma of what holds the datum (control, else GPS), five times, at
-// least QualityGates::min_check_threshold_m. GPS and model can agree on a
-// wrong survey (a layout turned by 180 degrees fits a similarity exactly):
-// only independent points can tell.
+namespace {
+
+// A check point's predicted sigma per axis: its survey's own (its file's
+// sigmas) and the posterior sigma of its adjusted or triangulated position;
+// without a posterior, the sigma of what holds the datum and
+// min_check_threshold_m / check_sigma_multiple (a triangulation adds a few
+// GSD that no stated sigma holds).
+Eigen::Vector3d PredictedSigma(const Point* point, const GroundPointResult& r, const QualityGates& gates,
+                               std::pair<double, double> datum) {
+  Eigen::Vector3d survey = Eigen::Vector3d::Zero();
+  if (point && point->prior) {
+    const PositionPrior& p = *point->prior;
+    survey = p.covariance ? Eigen::Vector3d(p.covariance->diagonal().cwiseMax(0.0).cwiseSqrt())
+                          : Eigen::Vector3d(p.sigma_h_m, p.sigma_h_m, p.sigma_v_m);
+  }
+  if (r.has_precision) return (survey.cwiseAbs2() + r.sigma_m.cwiseAbs2()).cwiseSqrt();
+  const double floor = gates.min_check_threshold_m / gates.check_sigma_multiple;
+  const Eigen::Vector3d d(datum.first, datum.first, datum.second);
+  return (survey.cwiseAbs2() + d.cwiseAbs2()).cwiseSqrt().cwiseMax(floor);
+}
+
+std::string AxisName(int a) { return a == 0 ? "x" : a == 1 ? "y" : "z"; }
+
+// "410 (w -7.3 in y)": a rejected point and its largest normalised residual.
+std::string DescribeRejected(const GroundPointResult& r) {
+  int a = 0;
+  r.w.cwiseAbs().maxCoeff(&a);
+  return r.name + " (w " + Fixed(r.w[a], 1) + " in " + AxisName(a) + ")";
+}
+
+// What can put a whole survey off its check points, for this block.
+std::string MisplacedReasons(bool gps, bool control) {
+  std::string reasons;
+  if (control) reasons += "the control and the check points in different datums, CRSs or height references";
+  if (gps) {
+    if (!reasons.empty()) reasons += "; ";
+    reasons += "GPS positions in another datum or height reference, or matched to the wrong photos";
+  }
+  if (reasons.empty()) reasons = "a wrong registration";
+  return reasons + "; or the check file in another CRS";
+}
+
+}  // namespace
+
+// Check points against their full predicted sigma. Each residual, per axis,
+// over the root-sum-square of its posterior sigma and its survey's (Baarda's
+// w); rejected beyond the family-wise critical value. The survey is failed
+// only where the evidence is of a survey misplaced against its check points:
+// most of them rejected, by a common offset far beyond their sigmas, or by
+// residuals far beyond any sigma. GPS and model can agree on a wrong survey
+// (a layout turned by 180 degrees fits a similarity exactly): only
+// independent points can tell.
 void CheckPointGates(const SparseModel& model, const QualityGates& gates, GeoreferenceReport* report) {
   const bool control_datum = report->datum_source.rfind("control", 0) == 0;
-  const auto [datum_h, datum_v] = DatumSigmas(model, *report, control_datum);
-  std::vector<std::string> far;
-  int solved = 0;
-  for (const GroundPointResult& r : report->check) {
-    if (!r.solved) continue;
-    ++solved;
-    const Point* point = FindPoint(model, PointRole::kCheck, r.name);
-    const double sh = point && point->prior ? point->prior->sigma_h_m : 0.0;
-    const double sv = point && point->prior ? point->prior->sigma_v_m : 0.0;
-    const double limit_h = std::max(gates.min_check_threshold_m, gates.check_sigma_multiple * std::hypot(sh, datum_h));
-    const double limit_v = std::max(gates.min_check_threshold_m, gates.check_sigma_multiple * std::hypot(sv, datum_v));
-    if (r.d_m.head<2>().norm() > limit_h || std::abs(r.d_m.z()) > limit_v) far.push_back(r.name);
+  const auto datum = DatumSigmas(model, *report, control_datum);
+  std::vector<GroundPointResult*> solved;
+  bool posterior = true;
+  for (GroundPointResult& r : report->check) {
+    if (r.solved && r.d_m.allFinite()) solved.push_back(&r);
   }
-  if (far.empty()) return;
-  const std::string text =
-      std::to_string(far.size()) + " of " + std::to_string(solved) +
-      " check points are farther from their survey than the datum allows (" +
-      Fixed(gates.check_sigma_multiple, 0) + " sigma of the check point and of the " +
-      (control_datum ? "control" : "GPS") + "): " + JoinNames(far);
-  if (2 * far.size() > static_cast<size_t>(solved)) {
+  if (solved.empty()) return;
+  auto& test = report->check_test;
+  test.tests = 3 * static_cast<int>(solved.size());
+  test.family_alpha = gates.check_family_alpha;
+  test.critical_value = FamilyWiseCriticalValue(test.tests, gates.check_family_alpha);
+  std::vector<std::string> rejected, described;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero(), sigma2 = Eigen::Vector3d::Zero();
+  std::vector<double> largest;
+  for (GroundPointResult* r : solved) {
+    r->predicted_sigma_m = PredictedSigma(FindPoint(model, PointRole::kCheck, r->name), *r, gates, datum);
+    r->w = r->d_m.cwiseQuotient(r->predicted_sigma_m);
+    r->tested = true;
+    r->rejected = r->w.cwiseAbs().maxCoeff() > test.critical_value;
+    posterior &= r->has_precision;
+    mean += r->d_m;
+    sigma2 += r->predicted_sigma_m.cwiseAbs2();
+    largest.push_back(r->w.cwiseAbs().maxCoeff());
+    if (r->rejected) rejected.push_back(r->name), described.push_back(DescribeRejected(*r));
+  }
+  test.posterior = posterior;
+  if (rejected.empty()) return;
+  const double n = static_cast<double>(solved.size());
+  mean /= n;
+  // The offset over the points' typical predicted sigma (not over sqrt(n):
+  // the datum's error is common to them all).
+  const Eigen::Vector3d offset_w = mean.cwiseQuotient((sigma2 / n).cwiseSqrt());
+  double scatter2 = 0.0;
+  for (const GroundPointResult* r : solved) scatter2 += (r->d_m - mean).squaredNorm();
+  const double scatter = std::sqrt(scatter2 / n);
+  std::nth_element(largest.begin(), largest.begin() + largest.size() / 2, largest.end());
+  const double median_w = largest[largest.size() / 2];
+  const bool most = solved.size() >= 2 && 2 * rejected.size() > solved.size();
+  bool gps = false;
+  for (const CameraResult& c : report->cameras) gps |= c.has_prior;
+  const std::string test_text = " (|w| above " + Fixed(test.critical_value, 2) + ", family-wise " +
+                                Fixed(100.0 * test.family_alpha, 0) + " % over " + std::to_string(test.tests) +
+                                " axis tests)";
+  if (most && offset_w.cwiseAbs().maxCoeff() > gates.check_offset_multiple && scatter < 0.5 * mean.norm()) {
     report->findings.push_back(Finding::Error(
-        "CHECK_POINTS_FAR", text + "; the survey is misplaced (GPS in the wrong order or datum, "
-                                   "wrong registration) or the check file is wrong",
-        far));
-  } else {
-    report->findings.push_back(Finding::Warning("CHECK_POINTS_FAR", text + " (blunders?)", far));
+        "CHECK_POINTS_OFFSET",
+        "the check points sit a common (" + Fixed(mean.x(), 3) + ", " + Fixed(mean.y(), 3) + ", " +
+            Fixed(mean.z(), 3) + ") m from their survey, " + Fixed(offset_w.cwiseAbs().maxCoeff(), 0) +
+            " times their predicted sigma, and scatter " + Fixed(scatter, 3) +
+            " m about it: the survey is misplaced against them (" + MisplacedReasons(gps, control_datum) + ")",
+        rejected));
+    return;
   }
+  if (most && median_w > gates.check_gross_multiple) {
+    report->findings.push_back(Finding::Error(
+        "CHECK_POINTS_FAR",
+        std::to_string(rejected.size()) + " of " + std::to_string(solved.size()) +
+            " check points lie far beyond their predicted sigmas (median |w| " + Fixed(median_w, 0) +
+            "): " + JoinNames(described) + "; the survey does not fit them (" +
+            MisplacedReasons(gps, control_datum) + ")",
+        rejected));
+    return;
+  }
+  const bool one_of_many = rejected.size() == 1 && solved.size() >= 3;
+  report->findings.push_back(Finding::Warning(
+      "CHECK_POINTS_FAR",
+      std::to_string(rejected.size()) + " of " + std::to_string(solved.size()) +
+          " check points beyond their predicted sigmas" + test_text + ": " + JoinNames(described) +
+          (one_of_many ? std::string("; the others agree: its survey or its marks are likely wrong")
+                       : std::string("; the model does not explain them: unmodelled systematic error (the "
+                                     "block's deformation, a lens model that is too simple), or check points "
+                                     "surveyed or marked wrong")),
+      rejected));
 }
 
 void DomeGate(const QualityGates& gates, GeoreferenceReport* report) {

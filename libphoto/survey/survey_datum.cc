@@ -126,7 +126,17 @@ void MeasureControlPrecision(SurveyState* s) {
   cp.stated_m = std::sqrt(stated2 / n);
   cp.estimated_m = ControlScatter(*s, in, s->control_from);
   if (cp.estimated_m > 3.0 * cp.stated_m) cp.estimated_m = FreeNetworkControlScatter(*s, in, cp.stated_m);
-  if (cp.estimated_m > 3.0 * cp.stated_m && !s->Options().keep_stated_control_sigmas) {
+  if (!(cp.estimated_m > 3.0 * cp.stated_m)) return;
+  if (s->Options().keep_stated_control_sigmas || (s->Options().hold_stated_sigmas && ControlSigmasStated(*s))) {
+    // Kept as asked, or stated in the file. A free network of a weak block
+    // deforms at the control by its own imprecision, which its scatter
+    // cannot tell from the control's: the adjustment's variance component
+    // for the control, whose redundancy share allows for the block's
+    // precision there, judges them instead (ReportVarianceComponents).
+    cp.deferred = true;
+    return;
+  }
+  {
     // Weigh the control by what it shows: every control prior scaled alike.
     const double f = cp.estimated_m / cp.stated_m;
     for (int k : s->control_points) {
@@ -137,18 +147,13 @@ void MeasureControlPrecision(SurveyState* s) {
     }
     cp.adopted = true;
   }
-  if (!(cp.estimated_m > 3.0 * cp.stated_m)) return;
   s->report.findings.push_back(Finding::Warning(
       "CONTROL_WEAKER_THAN_STATED",
       "the control points scatter about the model by " + FormatMetres(cp.estimated_m) + " per axis (" +
           std::to_string(n) + " points), " +
           std::to_string(static_cast<int>(std::lround(cp.estimated_m / cp.stated_m))) + " times the " +
-          FormatMetres(cp.stated_m) + " their sigmas state" +
-          (cp.adopted ? std::string("; the adjustment weighs them by the estimate (state it with "
-                                    "--gcp-sigma-h / --gcp-sigma-v, or keep the file's with "
-                                    "--keep-control-sigmas)")
-                      : std::string("; the file's sigmas were kept as asked: the block is bent to fit "
-                                    "the control"))));
+          FormatMetres(cp.stated_m) + " their sigmas state; the adjustment weighs them by the estimate (state "
+          "sigmas in the control file, or keep these with --keep-control-sigmas)"));
 }
 
 // With three or more non-collinear control points the datum is theirs.

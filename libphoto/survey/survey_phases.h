@@ -193,6 +193,11 @@ Eigen::Vector3d AntennaOf(const Image& image, const Eigen::Vector3d& lever);
 // What the receiver should have read for an image, as adjusted: its antenna,
 // plus the GPS offset and the flight's drift where estimated.
 Eigen::Vector3d GpsAsAdjusted(const SurveyState& s, const Image& image);
+// Every control point in use states its sigmas in its file.
+bool ControlSigmasStated(const SurveyState& s);
+// GeoreferenceOptions::hold_stated_sigmas: the observation groups whose
+// every sigma the survey's files state, held at them (s->bundle).
+void HoldStatedSigmas(SurveyState* s);
 // Per camera group: whether a registered image uses it.
 std::vector<char> CamerasInUse(const SparseModel& model);
 void ApplySimilarity(const Similarity& similarity, SparseModel* model);

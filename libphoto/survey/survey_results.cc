@@ -163,6 +163,26 @@ CameraResult CameraInCrs(const SurveyState& s, size_t index) {
   return c;
 }
 
+// Control that scattered about the free network beyond 3 times its stated
+// sigmas, with sigmas stated in its file or kept as asked
+// (ControlPrecision::deferred): judged by its variance component in the
+// adjustment, whose redundancy share allows for the block's own precision
+// at the control. Too little redundancy (a weak block that the control
+// holds) cannot contradict the stated sigmas.
+void JudgeControlByItsComponent(SurveyState* s, const VarianceComponent& vc) {
+  if (!s->report.control_precision.deferred || !(vc.stated_sigma > 0.0) || !std::isfinite(vc.sigma0)) return;
+  const double factor = vc.EstimatedSigma() / vc.stated_sigma;
+  if (!(factor > 3.0) || vc.redundancy < 3.0) return;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "the control scatters %.0f times its stated sigmas in the adjustment: %.3g m against %.3g m "
+                "(variance component, redundancy %.1f of %d coordinates)%s",
+                factor, vc.EstimatedSigma(), vc.stated_sigma, vc.redundancy, vc.rows,
+                vc.estimated ? "; the adjustment weighs it by the estimate"
+                             : "; the stated sigmas were kept: the block is bent to fit the control");
+  s->report.findings.push_back(Finding::Warning("CONTROL_WEAKER_THAN_STATED", text));
+}
+
 }  // namespace
 
 void ReportGnssAndAttitude(SurveyState* s) {
@@ -274,7 +294,11 @@ void ReportVarianceComponents(SurveyState* s) {
   // Observation groups whose data scatter several times their stated sigmas
   // (control has its own finding, CONTROL_WEAKER_THAN_STATED).
   for (const VarianceComponent& vc : report.bundle.variance_components) {
-    if (vc.group == ObservationGroup::kControl || !(vc.stated_sigma > 0.0)) continue;
+    if (vc.group == ObservationGroup::kControl) {
+      JudgeControlByItsComponent(s, vc);
+      continue;
+    }
+    if (!(vc.stated_sigma > 0.0)) continue;
     const double factor = vc.EstimatedSigma() / vc.stated_sigma;
     if (!(factor > 3.0)) continue;
     const bool px = vc.group == ObservationGroup::kTies || vc.group == ObservationGroup::kMarks;

@@ -122,8 +122,46 @@ void ChooseRefinement(SurveyState* s) {
   s->focal_held_flat = true;
 }
 
+bool ControlSigmasStated(const SurveyState& s) {
+  int control = 0;
+  for (const SurveyedPoint& p : s.surveyed) {
+    if (p.role != PointRole::kControl || !p.excluded.empty()) continue;
+    ++control;
+    if (!p.source->sigma_h_m && !p.source->sigma_v_m && !p.source->sigma_xyz_m) return false;
+  }
+  return control > 0;
+}
+
+// Ties and marks: stated when every measurement of the group carries its
+// sigma_px. Control: stated in its file, and not contradicted by its scatter
+// (then its variance component is estimated where the block can judge it),
+// or kept as asked. GPS sigmas are the receiver's or the defaults, never
+// the survey's statement: estimated.
+void HoldStatedSigmas(SurveyState* s) {
+  const GeoreferenceOptions& options = s->Options();
+  auto& hold = s->bundle.hold_stated_sigmas;
+  hold.fill(false);
+  const bool kept = options.keep_stated_control_sigmas;
+  hold[static_cast<int>(ObservationGroup::kControl)] = kept;
+  if (!options.hold_stated_sigmas) return;
+  const SparseModel& model = *s->model;
+  bool ties = true, marks = true;
+  int num_ties = 0, num_marks = 0;
+  for (const Observation& obs : model.observations) {
+    if (!model.images[obs.image].registered) continue;
+    const bool mark = model.points[obs.point].role != PointRole::kTie;
+    (mark ? num_marks : num_ties) += 1;
+    (mark ? marks : ties) &= obs.sigma_px > 0.0;
+  }
+  hold[static_cast<int>(ObservationGroup::kTies)] = ties && num_ties > 0;
+  hold[static_cast<int>(ObservationGroup::kMarks)] = marks && num_marks > 0;
+  hold[static_cast<int>(ObservationGroup::kControl)] =
+      kept || (ControlSigmasStated(*s) && !s->report.control_precision.deferred);
+}
+
 void AdjustBlock(SurveyState* s) {
   GeoreferenceReport& report = s->report;
+  HoldStatedSigmas(s);
   s->bundle.compute_intrinsics_covariance = true;
   s->bundle.compute_precision = s->Options().posterior_precision;
   s->before_final = *s->model;
