@@ -42,8 +42,9 @@ std::string Lower(std::string s) {
 // optimality-gap stopping rule (BundleStopRule) to the accepted steps.
 class IterationForwarder final : public ceres::IterationCallback {
  public:
-  IterationForwarder(const std::function<void(const IterationReport&)>& fn, int round, double optimality_gap)
-      : fn_(fn), round_(round), stop_(optimality_gap) {}
+  IterationForwarder(const std::function<void(const IterationReport&)>& fn, int round, double optimality_gap,
+                     double cost_change_tolerance)
+      : fn_(fn), round_(round), stop_(optimality_gap), cost_change_tolerance_(cost_change_tolerance) {}
   ceres::CallbackReturnType operator()(
       const ceres::IterationSummary& summary) override {
     if (fn_) {
@@ -55,15 +56,28 @@ class IterationForwarder final : public ceres::IterationCallback {
       fn_(report);
     }
     if ((summary.iteration == 0 || summary.step_is_successful) && stop_.Accepted(summary.cost)) {
+      reason_ = "the cost is within the optimality gap of its estimated optimum";
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    if (cost_change_tolerance_ > 0.0 && summary.iteration > 0 && summary.step_is_successful &&
+        summary.cost_change < cost_change_tolerance_) {
+      char text[160];
+      std::snprintf(text, sizeof text, "a step lowered the cost by %.3g < %.3g (cost_change_tolerance)",
+                    summary.cost_change, cost_change_tolerance_);
+      reason_ = text;
       return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     }
     return ceres::SOLVER_CONTINUE;
   }
 
+  const std::string& Reason() const { return reason_; }
+
  private:
   const std::function<void(const IterationReport&)>& fn_;
   int round_;
   BundleStopRule stop_;
+  double cost_change_tolerance_ = 0.0;
+  std::string reason_;
 };
 
 std::unique_ptr<ceres::LossFunction> MakeLoss(const BundleOptions& options, double sigma_px) {
@@ -1017,8 +1031,9 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   ceres::Solver::Options solver_options = SolverOptions(options, config.num_images, &result.solver);
   if (result.num_points > 0) solver_options.linear_solver_ordering = bundle.SchurOrdering(gps_offsets, gps_drift);
   std::unique_ptr<IterationForwarder> forwarder;
-  if (options.iteration_callback || options.optimality_gap > 0.0) {
-    forwarder = std::make_unique<IterationForwarder>(options.iteration_callback, round, options.optimality_gap);
+  if (options.iteration_callback || options.optimality_gap > 0.0 || options.cost_change_tolerance > 0.0) {
+    forwarder = std::make_unique<IterationForwarder>(options.iteration_callback, round, options.optimality_gap,
+                                                     options.cost_change_tolerance);
     solver_options.callbacks.push_back(forwarder.get());
   }
   result.setup_s = SecondsSince(setup_start);
@@ -1039,6 +1054,11 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   } else if (problem.NumResidualBlocks() > 0) {
     ceres::Solve(solver_options, &problem, &result.ceres);
+    if (result.ceres.termination_type == ceres::USER_SUCCESS && forwarder) {
+      // Our stopping rules (optimality gap, cost change) are convergence.
+      result.ceres.termination_type = ceres::CONVERGENCE;
+      result.ceres.message = forwarder->Reason();
+    }
     if (options.compute_intrinsics_covariance) {
       if (config.AnyMerged()) {
         result.covariance_note = "not computed: images with a camera group of their own";
@@ -1253,7 +1273,7 @@ bool BundleOptions::Validate(std::string* error) const {
     return fail("optimality gap must be in [0, 1) (0 = off), got " + std::to_string(optimality_gap));
   }
   if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) ||
-      !(parameter_tolerance >= 0.0) || !(screening_function_tolerance >= 0.0)) {
+      !(parameter_tolerance >= 0.0) || !(screening_function_tolerance >= 0.0) || !(cost_change_tolerance >= 0.0)) {
     return fail("solver tolerances must be >= 0");
   }
   if (!(outlier_threshold_px >= 0.0)) {
@@ -1440,6 +1460,7 @@ BundleOptions SolveWithOutlierRounds(BundleRun* run) {
   const bool screening = options.least_squares_after_screening && options.loss != LossType::kNone && max_rounds > 0;
   BundleOptions screen = options;
   screen.function_tolerance = std::max(options.function_tolerance, options.screening_function_tolerance);
+  screen.cost_change_tolerance = 0.0;
   BundleOptions least_squares = options;
   least_squares.loss = LossType::kNone;
   const BundleOptions& estimate = screening ? least_squares : options;

@@ -192,6 +192,14 @@ struct BundleOptions {
   // (BundleStopRule in dense_schur_solver.h: the last accepted decrease and
   // its geometric extrapolation); 0: off, only the tolerances below stop.
   double optimality_gap = 0.0;
+  // Stop once an accepted step lowers the cost (½Σ of squared residuals over
+  // their sigmas) by less than this, absolute; 0: off. A step of d standard
+  // deviations along any direction of the normal equations changes that cost
+  // by about d²/2, so 1e-6 stops within about a thousandth of a sigma of the
+  // optimum where a relative function tolerance stops short along a weak
+  // block's valleys (omega-Y correlated beyond 0.99). Not applied to the
+  // robust screening solve.
+  double cost_change_tolerance = 0.0;
   double function_tolerance = 1e-6;
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;

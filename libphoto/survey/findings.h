@@ -28,6 +28,7 @@
 //   DOME                       warning  vertical residuals domed across the block
 //   MARK_BLUNDER               warning  Baarda's w-test rejects a target mark at the family-wise
 //                                       level (QualityGates::mark_family_alpha) (point, image)
+//   MARKS_OFFSET               warning  one photo's (or one point's) marks share an offset: systematic
 //   MARK_DUPLICATED            warning  one target labelled as two points in one photo
 //   GPS_DRIFT                  warning  GPS positions trend in time: a drift per flight estimated
 //   GPS_TILT_REJECTED          warning  GPS heights would tilt a nadir block; levelled by its attitude

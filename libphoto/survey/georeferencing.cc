@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <functional>
+#include <map>
+#include <set>
 #include <limits>
 #include <chrono>
 #include <cmath>
@@ -49,10 +51,16 @@ BundleOptions SurveyBundleOptions() {
   // 513), while least squares on the screened observations converges in a
   // handful and is the estimator sigma0 and the covariances assume.
   o.least_squares_after_screening = true;
-  // Closer to the optimum than Ceres' 1e-6, which along a strong omega-Y
-  // correlation stops short by millimetres.
-  o.function_tolerance = 1e-7;
-  o.parameter_tolerance = 1e-8;
+  // The optimum, not near it: a relative function tolerance (Ceres' 1e-6,
+  // this project's earlier 1e-7) stops short along a weak block's omega-Y
+  // valley by tenths of a millimetre at the check points and millimetres at
+  // the cameras (DBAT's five-frame block), and so does a parameter
+  // tolerance relative to coordinates of a million metres. The solves stop
+  // when a step gains less than 1e-6 of the whitened cost, about a
+  // thousandth of a sigma (BundleOptions::cost_change_tolerance).
+  o.cost_change_tolerance = 1e-6;
+  o.function_tolerance = 1e-12;
+  o.parameter_tolerance = 1e-12;
   o.gradient_tolerance = 1e-10;
   return o;
 }
@@ -191,7 +199,68 @@ int CountMarkTests(const std::vector<MarkResult>& marks) {
   return tests;
 }
 
-std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critical, double w_critical_family) {
+std::vector<MarkOffset> FindMarkOffsets(const std::vector<MarkResult>& marks, double family_alpha) {
+  // The groups: every mark (an offset of the whole survey's marks against
+  // its ties), the marks of each image, and of each point, three or more.
+  std::map<std::pair<int, std::string>, std::vector<int>> groups;
+  for (size_t k = 0; k < marks.size(); ++k) {
+    if (!(marks[k].redundancy.array() > 1e-6).all() || !marks[k].w.allFinite()) continue;
+    groups[{0, ""}].push_back(static_cast<int>(k));
+    groups[{1, marks[k].image}].push_back(static_cast<int>(k));
+    groups[{2, marks[k].point}].push_back(static_cast<int>(k));
+  }
+  int tests = 0;
+  for (const auto& [key, members] : groups) tests += members.size() >= 3 ? 2 : 0;
+  const double critical = FamilyWiseCriticalValue(std::max(tests, 1), family_alpha);
+  std::vector<MarkOffset> found;
+  // Where every mark shares an offset, the images' and points' groups are
+  // tested about it.
+  Eigen::Vector2d common_w = Eigen::Vector2d::Zero(), common_px = Eigen::Vector2d::Zero();
+  for (const auto& [key, members] : groups) {
+    const int k = static_cast<int>(members.size());
+    if (k < 3) continue;
+    for (int axis = 0; axis < 2; ++axis) {
+      // The marks' mean w, scaled to unit variance under no offset; it must
+      // hold without its largest |w| (one blunder is not an offset), and two
+      // thirds of the marks must share its sign.
+      double sum = 0.0, largest = 0.0, residual = 0.0;
+      for (int m : members) {
+        const double w = marks[m].w[axis] - common_w[axis];
+        sum += w;
+        residual += marks[m].residual_px[axis] - common_px[axis];
+        if (std::abs(w) > std::abs(largest)) largest = w;
+      }
+      const double z = sum / std::sqrt(k);
+      const double z_without = (sum - largest) / std::sqrt(k - 1);
+      int same_sign = 0;
+      for (int m : members) same_sign += (marks[m].w[axis] - common_w[axis] > 0) == (sum > 0);
+      if (!(std::abs(z) > critical && std::abs(z_without) > critical && 3 * same_sign >= 2 * k)) continue;
+      if (key.first == 0) {
+        common_w[axis] = sum / k;
+        common_px[axis] = residual / k;
+      }
+      MarkOffset o;
+      o.all = key.first == 0;
+      o.per_image = key.first == 1;
+      o.name = key.second;
+      o.axis = axis;
+      o.marks = k;
+      o.same_sign = same_sign;
+      o.mean_residual_px = residual / k;
+      o.z = z;
+      o.critical_value = critical;
+      for (int m : members) o.members.push_back(m);
+      found.push_back(o);
+    }
+  }
+  std::stable_sort(found.begin(), found.end(), [](const MarkOffset& a, const MarkOffset& b) {
+    return a.all != b.all ? a.all : std::abs(a.z) > std::abs(b.z);
+  });
+  return found;
+}
+
+std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critical, double w_critical_family,
+                                double family_alpha) {
   MarkResult* worst = nullptr;
   int suspects = 0;
   for (MarkResult& m : *marks) {
@@ -201,7 +270,43 @@ std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critica
     suspects += m.suspect;
     if (!worst || w > worst->w.cwiseAbs().maxCoeff()) worst = &m;
   }
-  if (!worst || !(worst->w.cwiseAbs().maxCoeff() > w_critical_family)) return {};
+  std::vector<Finding> findings;
+  // A photo's (or a point's) marks sharing one offset: a systematic error
+  // of that photo's or point's marking, said as such rather than as the
+  // one blunder it would otherwise look like.
+  const std::vector<MarkOffset> offsets = FindMarkOffsets(*marks, family_alpha);
+  std::set<std::pair<int, std::string>> said;
+  bool worst_explained = false;
+  for (const MarkOffset& o : offsets) {
+    if (!said.insert({o.all ? 0 : o.per_image ? 1 : 2, o.name}).second) continue;
+    const auto worst_index = worst ? static_cast<int>(worst - marks->data()) : -1;
+    worst_explained |=
+        !o.all && std::find(o.members.begin(), o.members.end(), worst_index) != o.members.end();
+    char text[600];
+    if (o.all) {
+      std::snprintf(text, sizeof text,
+                    "all %d target marks share an offset of %.2f px in %s against the tie points (%d of them on "
+                    "its side; their mean w %.1f, critical value %.2f): the targets were measured in another "
+                    "pixel convention or program than the ties%s",
+                    o.marks, o.mean_residual_px, o.axis == 0 ? "x" : "y", o.same_sign, o.z, o.critical_value,
+                    offsets.size() > 1 ? "; the photos and points below are tested about it" : "");
+      findings.push_back(Finding::Warning("MARKS_OFFSET", text, {"all marks"}));
+      continue;
+    }
+    std::snprintf(text, sizeof text,
+                  "the %d marks %s '%s' share an offset of %.2f px in %s (%d of them on its side; their mean w "
+                  "%.1f, critical value %.2f)%s: a systematic error of %s, not one blunder: %s",
+                  o.marks, o.per_image ? "on image" : "of point", o.name.c_str(), o.mean_residual_px,
+                  o.axis == 0 ? "x" : "y", o.same_sign, o.z, o.critical_value,
+                  offsets.front().all ? " beyond the marks' common offset" : "",
+                  o.per_image ? "that photo's marking (another measuring session or program, a pixel "
+                                "convention, a resampled or cropped image)"
+                              : "that point's marking (the marks set on another feature of the target, or "
+                                "its coordinates wrong)",
+                  o.per_image ? "check and re-measure the photo's marks" : "check the target's marks and survey");
+    findings.push_back(Finding::Warning("MARKS_OFFSET", text, {o.name}));
+  }
+  if (!worst || !(worst->w.cwiseAbs().maxCoeff() > w_critical_family) || worst_explained) return findings;
   worst->rejected = true;
   char more[160] = "";
   if (suspects > 1) {
@@ -216,7 +321,8 @@ std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critica
                 worst->point.c_str(), worst->image.c_str(),
                 std::abs(worst->w.x()) > std::abs(worst->w.y()) ? worst->w.x() : worst->w.y(),
                 worst->residual_px.x(), worst->residual_px.y(), w_critical_family, CountMarkTests(*marks), more);
-  return {Finding::Warning("MARK_BLUNDER", text, {worst->point, worst->image})};
+  findings.push_back(Finding::Warning("MARK_BLUNDER", text, {worst->point, worst->image}));
+  return findings;
 }
 
 std::string ToString(GpsOffsetPolicy policy) {

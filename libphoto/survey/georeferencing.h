@@ -178,7 +178,30 @@ double FamilyWiseCriticalValue(int tests, double family_alpha);
 // marked rejected and named by the returned MARK_BLUNDER warning (one at a
 // time: a blunder raises its neighbours' w too, less). No finding when
 // nothing exceeds w_critical_family.
-std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critical, double w_critical_family);
+//
+// Before it, systematic offsets (FindMarkOffsets) are said as MARKS_OFFSET;
+// a worst mark that belongs to such a group is not named alone.
+std::vector<Finding> SnoopMarks(std::vector<MarkResult>* marks, double w_critical, double w_critical_family,
+                                double family_alpha = 0.01);
+
+// The marks of one image (or of one point) sharing an offset on one axis:
+// their mean w, sqrt(k) times (unit variance without an offset), beyond the
+// family-wise critical value over every group's two axis tests, also without
+// its largest |w| (one blunder is not an offset), two thirds of them on its
+// side. Three or more marks per group; the most significant first.
+struct MarkOffset {
+  bool all = false;       // every mark of the survey (against its ties)
+  bool per_image = true;  // the marks of image `name`, else of point `name`
+  std::string name;
+  int axis = 0;           // 0: x, 1: y
+  int marks = 0;
+  int same_sign = 0;
+  double mean_residual_px = 0.0;
+  double z = 0.0;
+  double critical_value = 0.0;
+  std::vector<int> members;  // indices into the marks
+};
+std::vector<MarkOffset> FindMarkOffsets(const std::vector<MarkResult>& marks, double family_alpha);
 int CountMarkTests(const std::vector<MarkResult>& marks);
 
 struct CameraResult {

@@ -333,7 +333,7 @@ void SnoopTargetMarks(SurveyState* s) {
   report.mark_tests = CountMarkTests(report.marks);
   report.mark_family_alpha = s->Options().gates.mark_family_alpha;
   report.w_critical_family = FamilyWiseCriticalValue(std::max(report.mark_tests, 1), report.mark_family_alpha);
-  for (Finding& f : SnoopMarks(&report.marks, report.w_critical, report.w_critical_family)) {
+  for (Finding& f : SnoopMarks(&report.marks, report.w_critical, report.w_critical_family, report.mark_family_alpha)) {
     report.findings.push_back(std::move(f));
   }
 }
