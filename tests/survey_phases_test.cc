@@ -8,6 +8,7 @@
 
 #include "libphoto/base/error.h"
 #include "libphoto/simulate/synthetic_georef.h"
+#include "libphoto/survey/quality_gates.h"
 
 namespace aerotri {
 namespace {
@@ -204,6 +205,89 @@ TEST(SurveyPhases, ControlHeightsAllZeroAreTakenAsUnknownUnlessStated) {
   SurveyState s = StartSurvey(&model, scene.gps, &control, nullptr, options);
   ChooseFrameAndDatum(&s);
   EXPECT_FALSE(HasFinding(s.report, "CONTROL_HEIGHTS_ZERO"));
+}
+
+// The check-point gate alone, on residuals stated by hand: posterior sigmas
+// of 5 cm, no survey sigma (no priors in the empty model).
+GeoreferenceReport ChecksWithResiduals(const std::vector<Eigen::Vector3d>& residuals) {
+  GeoreferenceReport r;
+  r.datum_source = "control points (8 of 8 in the initial similarity)";
+  for (size_t k = 0; k < residuals.size(); ++k) {
+    GroundPointResult p;
+    p.name = "C" + std::to_string(k);
+    p.role = PointRole::kCheck;
+    p.solved = true;
+    p.d_m = residuals[k];
+    p.has_precision = true;
+    p.sigma_m = Eigen::Vector3d::Constant(0.05);
+    r.check.push_back(p);
+  }
+  return r;
+}
+
+const Finding* Only(const GeoreferenceReport& r, const std::string& code) {
+  const Finding* found = nullptr;
+  for (const Finding& f : r.findings) {
+    if (f.code == code) found = &f;
+  }
+  return found;
+}
+
+TEST(CheckPointGates, ResidualsWithinTheirSigmasPass) {
+  GeoreferenceReport r = ChecksWithResiduals({{0.05, -0.03, 0.08}, {-0.06, 0.02, -0.04}, {0.01, 0.09, 0.0}});
+  CheckPointGates(SparseModel(), QualityGates(), &r);
+  EXPECT_TRUE(r.findings.empty());
+  EXPECT_EQ(r.check_test.tests, 9);
+  EXPECT_NEAR(r.check_test.critical_value, FamilyWiseCriticalValue(9, 0.01), 1e-12);
+  EXPECT_NEAR(r.check[0].w.z(), 0.08 / 0.05, 1e-12);
+}
+
+TEST(CheckPointGates, OnePointOffIsAWarningNamingIt) {
+  GeoreferenceReport r = ChecksWithResiduals({{0.05, -0.03, 0.08}, {-0.06, 0.40, -0.04}, {0.01, 0.09, 0.0}});
+  CheckPointGates(SparseModel(), QualityGates(), &r);
+  const Finding* f = Only(r, "CHECK_POINTS_FAR");
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(f->severity, Severity::kWarning);
+  EXPECT_EQ(f->items, std::vector<std::string>{"C1"});
+  EXPECT_NE(f->message.find("C1 (w 8.0 in y)"), std::string::npos) << f->message;
+  EXPECT_NE(f->message.find("the others agree"), std::string::npos) << f->message;
+}
+
+// A common offset far beyond the sigmas: the survey is misplaced against
+// its check points (another datum), said with the offset; no GPS here, so
+// no GPS in the reasons.
+TEST(CheckPointGates, ACommonOffsetFailsTheSurvey) {
+  GeoreferenceReport r =
+      ChecksWithResiduals({{10.02, 0.01, -0.03}, {9.96, -0.04, 0.05}, {10.05, 0.03, 0.01}, {9.99, 0.0, -0.02}});
+  CheckPointGates(SparseModel(), QualityGates(), &r);
+  const Finding* f = Only(r, "CHECK_POINTS_OFFSET");
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(f->severity, Severity::kError);
+  EXPECT_NE(f->message.find("(10.005, 0.000, 0.003) m"), std::string::npos) << f->message;
+  EXPECT_EQ(f->message.find("GPS"), std::string::npos) << f->message;
+}
+
+// A layout turned by 180 degrees: residuals far beyond any sigma that share
+// no offset: failed, not explained as an offset.
+TEST(CheckPointGates, ResidualsFarBeyondAnySigmaFailTheSurvey) {
+  GeoreferenceReport r =
+      ChecksWithResiduals({{100.0, 40.0, 0.1}, {-100.0, -40.0, -0.1}, {60.0, -80.0, 0.0}, {-60.0, 80.0, 0.2}});
+  CheckPointGates(SparseModel(), QualityGates(), &r);
+  EXPECT_EQ(Only(r, "CHECK_POINTS_OFFSET"), nullptr);
+  const Finding* f = Only(r, "CHECK_POINTS_FAR");
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(f->severity, Severity::kError);
+  EXPECT_EQ(f->items.size(), 4u);
+}
+
+// Without posterior sigmas, the datum's and a floor stand in: 2 cm.
+TEST(CheckPointGates, WithoutAPosteriorTheDatumsSigmasStandIn) {
+  GeoreferenceReport r = ChecksWithResiduals({{0.03, 0.0, 0.0}, {0.0, 0.03, 0.0}});
+  for (GroundPointResult& p : r.check) p.has_precision = false;
+  CheckPointGates(SparseModel(), QualityGates(), &r);
+  EXPECT_FALSE(r.check_test.posterior);
+  EXPECT_NEAR(r.check[0].predicted_sigma_m.x(), QualityGates().min_check_threshold_m / 5.0, 1e-12);
+  EXPECT_TRUE(r.findings.empty());
 }
 
 }  // namespace

@@ -206,10 +206,11 @@ TEST_F(AdjustCommand, GpsThatContradictsTheModelFailsTheSurvey) {
   ExpectFailedNamingItems(run, args.output, "GPS_MOSTLY_INCONSISTENT", "IMG_");
 }
 
-// GPS in reverse order: on a lawn-mower block that is the layout turned by
-// 180 degrees, which a similarity fits exactly: GPS and model agree and only
-// the check points can tell. They are 100 m off: failed, naming them.
-TEST_F(AdjustCommand, CheckPointsFarBeyondTheDatumFailTheSurvey) {
+// GPS in reverse order: on this lawn-mower block the layout mirrored, which
+// a similarity fits only upside down; levelled by the nadir photos, the GPS
+// no longer follows the layout. Failed for that, the images named, and the
+// check points, 40 m and more off, named too.
+TEST_F(AdjustCommand, GpsInReverseOrderFailsTheSurveyAndTheCheckPointsSayIt) {
   AdjustArgs args = Args("reversed");
   args.gcp.clear();
   args.gps_csv = ScrambledGpsCsv(args.gps_csv, dir_->path() / "reversed_gps.csv", [](size_t n) {
@@ -218,7 +219,13 @@ TEST_F(AdjustCommand, CheckPointsFarBeyondTheDatumFailTheSurvey) {
     return order;
   });
   const RunResult run = RunAdjustInProcess(args);
-  ExpectFailedNamingItems(run, args.output, "CHECK_POINTS_FAR", "");
+  ExpectFailedNamingItems(run, args.output, "GPS_MOSTLY_INCONSISTENT", "IMG_");
+  const auto report = nlohmann::json::parse(ReadTextFile(std::filesystem::path(args.output) / "report.json"));
+  bool named = false;
+  for (const auto& f : report["warnings"]) {
+    if (f["code"] == "CHECK_POINTS_FAR") named = f["items"].size() == 6;
+  }
+  EXPECT_TRUE(named) << report["warnings"].dump();
 }
 
 // The clean simulation passes every gate.

@@ -391,6 +391,14 @@ void AddPrecision(const GeoreferenceReport& r, nlohmann::json* out) {
 // control, the GNSS drift and the block's attitude.
 void AddDatumAndGnss(const GeoreferenceReport& r, nlohmann::json* out) {
   nlohmann::json& j = *out;
+  if (r.placement.computed) {
+    j["placement"] = {{"note", "how well the survey is placed in its CRS: the cameras' posterior position sigmas "
+                               "(median; horizontal: root-sum-square of the two axes), every observation group "
+                               "weighed as the adjustment estimated it"},
+                      {"datum", r.datum_source},
+                      {"sigma_h_m", r.placement.sigma_h_m},
+                      {"sigma_v_m", r.placement.sigma_v_m}};
+  }
   const auto& cp = r.control_precision;
   if (cp.measured) {
     j["control_precision"] = {{"note", "control scatter about the model per axis (free network), against the "

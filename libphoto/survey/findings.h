@@ -67,6 +67,9 @@ struct QualityGates {
   double max_rms_growth = 2.0;      // final / initial RMS, when the final is above 1 px
   double gps_sigma_multiple = 4.0;  // a camera this many sigma from its GPS is inconsistent
   double max_gps_inconsistent_fraction = 0.5;  // beyond: an error
+  // GPS residuals (horizontal RMS) beyond this fraction of the camera
+  // layout's spread: the GPS does not belong to the photos (an error).
+  double max_gps_residual_over_layout = 0.5;
   double control_sigma_multiple = 5.0;
   // Check points: this many sigma of their survey and of the datum, and at
   // least min_check_threshold_m (their triangulation from images adds a few

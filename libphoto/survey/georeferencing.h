@@ -297,6 +297,15 @@ struct GeoreferenceReport {
   std::optional<Eigen::Vector3d> local_origin;  // of a local frame (file units)
   Geodetic enu_origin;
   std::string datum_source;  // what the initial similarity was fitted to
+  // How well the survey is placed in its CRS: the cameras' posterior
+  // position sigmas (median, horizontal as the root-sum-square of the two
+  // axes' and vertical), with every group weighed as the adjustment
+  // estimated it (ReportVarianceComponents).
+  struct PlacementAccuracy {
+    bool computed = false;
+    double sigma_h_m = 0.0;
+    double sigma_v_m = 0.0;
+  } placement;
   int helmert_correspondences = 0;
   int helmert_inliers = 0;
   double helmert_rms_m = 0.0;

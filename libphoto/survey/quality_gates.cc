@@ -82,7 +82,7 @@ std::pair<double, double> DatumSigmas(const SparseModel& model, const Georeferen
 
 void ApplyQualityGates(const SparseModel& model, const QualityGates& gates, GeoreferenceReport* report) {
   ReprojectionGates(model, gates, report);
-  GpsGates(gates, report);
+  GpsGates(model, gates, report);
   const std::vector<std::string> control_bad = ControlPointsBeyondSigmas(model, gates, *report);
   CheckPointGates(model, gates, report);
   DomeGate(gates, report);
@@ -130,9 +130,48 @@ double EstimatedFactor(const GeoreferenceReport& report, ObservationGroup group)
   return 1.0;
 }
 
-void GpsGates(const QualityGates& gates, GeoreferenceReport* report) {
+// The horizontal RMS of the GPS residuals over the RMS spread of the
+// registered cameras with GPS about their mean (the model's layout, ENU).
+double GpsResidualOverLayout(const SparseModel& model, const GeoreferenceReport& report) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  int n = 0;
+  double residual2 = 0.0;
+  std::vector<Eigen::Vector2d> centres;
+  for (const CameraResult& c : report.cameras) {
+    if (!c.has_prior || c.prior_rejected) continue;
+    for (const Image& image : model.images) {
+      if (image.name != c.name) continue;
+      centres.push_back(image.pose.centre_in_world.head<2>());
+      mean += centres.back();
+      residual2 += c.d_enu_m.head<2>().squaredNorm();
+      ++n;
+    }
+  }
+  if (n < 4) return 0.0;
+  mean /= n;
+  double spread2 = 0.0;
+  for (const Eigen::Vector2d& c : centres) spread2 += (c - mean).squaredNorm();
+  return spread2 > 0.0 ? std::sqrt(residual2 / spread2) : 0.0;
+}
+
+void GpsGates(const SparseModel& model, const QualityGates& gates, GeoreferenceReport* report) {
   std::vector<std::string> gps_bad;
   int with_gps = 0;
+  const double over_layout = GpsResidualOverLayout(model, *report);
+  if (over_layout > gates.max_gps_residual_over_layout) {
+    std::vector<std::string> names;
+    for (const CameraResult& c : report->cameras) {
+      if (c.has_prior && !c.prior_rejected) names.push_back(c.name);
+    }
+    report->findings.push_back(Finding::Error(
+        "GPS_MOSTLY_INCONSISTENT",
+        "the GPS does not follow the photos' layout: its horizontal residuals are " +
+            Fixed(100.0 * over_layout, 0) + " % of the spread of the camera positions (a GPS that only scatters "
+            "stays far below): positions matched to the wrong photos (a CSV in another order, another flight's "
+            "log), or another survey's",
+        names));
+    return;
+  }
   // Judged against the sigmas the adjustment estimated for the GPS, where
   // it did: a poor GPS is not an inconsistent one.
   const double fh = EstimatedFactor(*report, ObservationGroup::kGpsHorizontal);

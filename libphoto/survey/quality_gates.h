@@ -19,7 +19,11 @@ void ReprojectionGates(const SparseModel& model, const QualityGates& gates, Geor
 
 // GPS residuals (after the estimated offset) against their sigmas:
 // GPS_INCONSISTENT, or GPS_MOSTLY_INCONSISTENT beyond the fraction.
-void GpsGates(const QualityGates& gates, GeoreferenceReport* report);
+// With the GPS's sigma estimated, a GPS whose residuals are comparable with
+// the spread of the photos' own layout (horizontally) does not follow the
+// model at all (positions matched to the wrong photos, another survey's):
+// GPS_MOSTLY_INCONSISTENT, whatever its estimated sigma.
+void GpsGates(const SparseModel& model, const QualityGates& gates, GeoreferenceReport* report);
 
 // Control points farther from their survey than control_sigma_multiple
 // sigma (the names, for CONTROL_RESIDUAL_HIGH).

@@ -156,35 +156,42 @@ void MeasureControlPrecision(SurveyState* s) {
           "sigmas in the control file, or keep these with --keep-control-sigmas)"));
 }
 
-// With three or more non-collinear control points the datum is theirs.
-// Control much noisier than its sigmas leaves few points within 5 sigma of
-// any fit (a handheld-GPS kite survey stated at 2 cm kept 3 of 8): the
-// data's own scatter then sets the threshold, 4 robust standard deviations
-// per axis (the 99.9 % point of a 3D error is 4.03 sigma) about the current
-// fit, refitted until it settles; a blunder far off the others' scatter
-// still falls out.
+// Priors much noisier than their sigmas leave few points within 5 sigma of
+// any fit (a handheld-GPS kite survey stated at 2 cm kept 3 of 8; a consumer
+// GPS scattering 12 m stated at 3 m, 12 of 35): the data's own scatter then
+// sets the threshold, 4 robust standard deviations per axis (the 99.9 %
+// point of a 3D error is 4.03 sigma) about the current fit, refitted until it
+// settles; a blunder far off the others' scatter still falls out. Returns
+// the threshold the fit ended with.
+double WidenToTheScatter(const std::vector<Eigen::Vector3d>& from, const std::vector<Eigen::Vector3d>& to,
+                       double threshold, std::optional<SimilarityFit>* fit) {
+  const int n = static_cast<int>(from.size());
+  for (int round = 0; round < 4 && *fit && (*fit)->num_inliers < n; ++round) {
+    std::vector<double> r;
+    for (int k = 0; k < n; ++k) r.push_back(((*fit)->transform.Apply(from[k]) - to[k]).norm());
+    std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+    const double sigma_axis = r[r.size() / 2] / 1.538;  // median of a 3D Gaussian error's length
+    const double adaptive = 4.03 * sigma_axis;
+    if (!(adaptive > threshold * 1.01)) break;
+    threshold = adaptive;
+    auto wider = FitSimilarityRobust(from, to, threshold, 1);
+    if (!wider || wider->num_inliers <= (*fit)->num_inliers) break;
+    *fit = wider;
+  }
+  return threshold;
+}
+
+// With three or more non-collinear control points the datum is theirs;
+// control much noisier than its sigmas widens the fit to its scatter
+// (WidenToTheScatter).
 void FitControlDatum(SurveyState* s) {
   if (s->control_from.size() < 3) return;
   const GeoreferenceOptions& options = s->Options();
   double threshold = HelmertThreshold(options, s->control_max_sigma);
   std::optional<SimilarityFit>& fit = s->fit;
   fit = FitSimilarityRobust(s->control_from, s->control_to, threshold, 1);
-  const int n_control = static_cast<int>(s->control_from.size());
-  for (int round = 0; round < 4 && fit && options.helmert_inlier_m <= 0.0 && n_control >= 4 &&
-                      fit->num_inliers < n_control;
-       ++round) {
-    std::vector<double> r;
-    for (int k = 0; k < n_control; ++k) {
-      r.push_back((fit->transform.Apply(s->control_from[k]) - s->control_to[k]).norm());
-    }
-    std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
-    const double sigma_axis = r[r.size() / 2] / 1.538;  // median of a 3D Gaussian error's length
-    const double adaptive = 4.03 * sigma_axis;
-    if (!(adaptive > threshold * 1.01)) break;
-    threshold = adaptive;
-    auto wider = FitSimilarityRobust(s->control_from, s->control_to, threshold, 1);
-    if (!wider || wider->num_inliers <= fit->num_inliers) break;
-    fit = wider;
+  if (options.helmert_inlier_m <= 0.0 && s->control_from.size() >= 4) {
+    threshold = WidenToTheScatter(s->control_from, s->control_to, threshold, &fit);
   }
   if (fit && fit->num_inliers >= 4) MeasureControlPrecision(s);
   if (!fit || fit->num_inliers < 3) {
@@ -305,8 +312,11 @@ void FitGpsDatum(SurveyState* s) {
   from.insert(from.end(), s->control_from.begin(), s->control_from.end());
   to.insert(to.end(), s->control_to.begin(), s->control_to.end());
   report.helmert_correspondences = static_cast<int>(from.size());
-  const double threshold = HelmertThreshold(s->Options(), std::max(s->gps_max_sigma, s->control_max_sigma));
+  double threshold = HelmertThreshold(s->Options(), std::max(s->gps_max_sigma, s->control_max_sigma));
   s->fit = FitSimilarityRobust(from, to, threshold, 1);
+  if (s->Options().helmert_inlier_m <= 0.0 && from.size() >= 6) {
+    threshold = WidenToTheScatter(from, to, threshold, &s->fit);
+  }
   if (!s->fit) {
     throw InvalidArgument(
         "cannot georeference: need GPS on 3 or more non-collinear images, or 3 or more control "

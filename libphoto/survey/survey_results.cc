@@ -287,6 +287,18 @@ void ReportCameras(SurveyState* s) {
 void ReportVarianceComponents(SurveyState* s) {
   GeoreferenceReport& report = s->report;
   const BundlePrecision& precision = report.bundle.precision;
+  std::vector<double> h, v;
+  for (const CameraResult& c : report.cameras) {
+    if (!c.has_precision) continue;
+    h.push_back(c.sigma_position_m.head<2>().norm());
+    v.push_back(c.sigma_position_m.z());
+  }
+  if (!h.empty()) {
+    std::nth_element(h.begin(), h.begin() + h.size() / 2, h.end());
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    report.placement = {true, h[h.size() / 2], v[v.size() / 2]};
+  }
+  const bool gps_datum = report.datum_source.rfind("GPS", 0) == 0;
   if (s->Options().posterior_precision && !precision.computed) {
     report.findings.push_back(Finding::Warning(
         "PRECISION_NOT_COMPUTED", "posterior standard deviations and the marks' w-test are missing: " + precision.note));
@@ -313,7 +325,19 @@ void ReportVarianceComponents(SurveyState* s) {
                   factor, vc.EstimatedSigma(), px ? "px" : "m", vc.stated_sigma, px ? "px" : "m", vc.redundancy,
                   vc.estimated ? "; the adjustment weighs them by the estimate"
                                : "; state the estimate, or let it be used (--variance-components estimate)");
-    report.findings.push_back(Finding::Warning("SIGMAS_OPTIMISTIC", text, {ToString(vc.group)}));
+    std::string message = text;
+    const bool gps = vc.group == ObservationGroup::kGpsHorizontal || vc.group == ObservationGroup::kGpsVertical;
+    if (gps && gps_datum && vc.estimated && report.placement.computed) {
+      // A poor GPS is not an inconsistent one: the survey is delivered, and
+      // how well it is placed is said.
+      char placed[240];
+      std::snprintf(placed, sizeof placed,
+                    "; the survey's placement rests on it: the cameras are placed to %.2g m horizontally and "
+                    "%.2g m vertically (1 sigma), the shape to the photos' precision",
+                    report.placement.sigma_h_m, report.placement.sigma_v_m);
+      message += placed;
+    }
+    report.findings.push_back(Finding::Warning("SIGMAS_OPTIMISTIC", message, {ToString(vc.group)}));
   }
 }
 
