@@ -649,7 +649,10 @@ TEST(Georeferencing, LeaveOneOutEqualsSeparateAdjustments) {
   // Withheld, a control point is farther from its survey than adjusted.
   EXPECT_GT(loo.stats.rmse_3d_m, r.control_stats.rmse_3d_m);
   EXPECT_LT(loo.stats.rmse_3d_m, 0.1);
-  for (const size_t k : {size_t{0}, scene.control.points.size() - 1}) {
+  // The table, from warm starts at the survey's optimum, equals N separate
+  // adjustments (a cold start through every phase) to 0.1 mm here; the
+  // issue's bar is 1 mm.
+  for (size_t k = 0; k < scene.control.points.size(); ++k) {
     GcpFile without = scene.control, alone = scene.control;
     without.points.erase(without.points.begin() + static_cast<long>(k));
     alone.points = {scene.control.points[k]};

@@ -339,9 +339,10 @@ void CheckPointGates(const SparseModel& model, const QualityGates& gates, Georef
       std::to_string(rejected.size()) + " of " + std::to_string(solved.size()) +
           " check points beyond their predicted sigmas" + test_text + ": " + JoinNames(described) +
           (one_of_many ? std::string("; the others agree: its survey or its marks are likely wrong")
-                       : std::string("; the model does not explain them: unmodelled systematic error (the "
-                                     "block's deformation, a lens model that is too simple), or check points "
-                                     "surveyed or marked wrong")),
+                       : std::string(rejected.size() == 1 ? "; the model does not explain it"
+                                                           : "; the model does not explain them") +
+                             ": unmodelled systematic error (the block's deformation, a lens model that is too "
+                             "simple), or a check point surveyed or marked wrong"),
       rejected));
 }
 

@@ -1,0 +1,78 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Leave-one-out from the survey's optimum against N separate adjustments,
+// side by side in one run (the machine is noisy: ratios, not seconds).
+//
+// Usage: loo_bench MODEL_DIR GPS_CSV GCP_FILE [CHECKS_FILE]
+//   e.g. build/bench/loo_bench sample_surveys/synthetic_meadow/model \
+//          sample_surveys/synthetic_meadow/gps.csv sample_surveys/synthetic_meadow/gcp_list.txt
+//
+// Prints the adjustment's time, the leave-one-out table's time (warm
+// starts) and that of N cold adjustments each without one control point
+// (every phase, from the model as given), their ratio, and the largest
+// difference between the two tables per point and axis.
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+#include "georef/gcp_file.h"
+#include "libphoto/ingest/gps_sources.h"
+#include "libphoto/io/colmap_text.h"
+#include "libphoto/survey/georeferencing.h"
+
+using namespace aerotri;  // NOLINT: a benchmark's main
+
+namespace {
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 4) {
+    std::fprintf(stderr, "usage: loo_bench MODEL_DIR GPS_CSV GCP_FILE [CHECKS_FILE]\n");
+    return 2;
+  }
+  const SparseModel start = ReadColmapText(argv[1]);
+  const auto gps = ReadGpsFile(argv[2], AltitudeReference::kEgm96, 3.0, 5.0);
+  const GcpFile control = ReadGcpFile(argv[3]);
+  std::optional<GcpFile> checks;
+  if (argc > 4) checks = ReadGcpFile(argv[4]);
+  GeoreferenceOptions options;
+  options.bundle.estimate_variance_components = true;  // the command line's default (auto)
+
+  options.leave_one_out = false;
+  SparseModel once = start;
+  auto t = std::chrono::steady_clock::now();
+  GeoreferenceAndAdjust(&once, gps, &control, checks ? &*checks : nullptr, options);
+  const double t_adjust = Seconds(t);
+
+  options.leave_one_out = true;
+  SparseModel with = start;
+  const GeoreferenceReport warm = GeoreferenceAndAdjust(&with, gps, &control, checks ? &*checks : nullptr, options);
+  const double t_warm = warm.leave_one_out.time_s;
+
+  options.leave_one_out = false;
+  double t_cold = 0.0, max_diff = 0.0;
+  std::string worst;
+  for (size_t k = 0; k < control.points.size(); ++k) {
+    GcpFile without = control, alone = control;
+    without.points.erase(without.points.begin() + static_cast<long>(k));
+    alone.points = {control.points[k]};
+    SparseModel copy = start;
+    t = std::chrono::steady_clock::now();
+    const GeoreferenceReport cold = GeoreferenceAndAdjust(&copy, gps, &without, &alone, options);
+    t_cold += Seconds(t);
+    const GroundPointResult& a = warm.leave_one_out.points.at(k);
+    const GroundPointResult& b = cold.check.at(0);
+    if (!a.solved || !b.solved) continue;
+    const double diff = (a.d_m - b.d_m).cwiseAbs().maxCoeff();
+    if (diff > max_diff) max_diff = diff, worst = a.name;
+  }
+  std::printf("control points: %zu\n", control.points.size());
+  std::printf("adjustment: %.2f s\n", t_adjust);
+  std::printf("leave-one-out, warm from the optimum: %.2f s (%.2f of one adjustment)\n", t_warm, t_warm / t_adjust);
+  std::printf("leave-one-out, %zu separate adjustments: %.2f s\n", control.points.size(), t_cold);
+  std::printf("ratio separate / warm: %.1f\n", t_cold / t_warm);
+  std::printf("largest difference of the tables: %.3f mm (%s)\n", 1000.0 * max_diff, worst.c_str());
+  return 0;
+}
