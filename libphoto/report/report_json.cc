@@ -328,6 +328,7 @@ void AddLeaveOneOut(const GeoreferenceReport& r, nlohmann::json* out) {
       lj["note"] = "each control point withheld from its own adjustment and triangulated as a check point: "
                    "residuals the adjustment did not pull towards zero";
       lj["adjustments"] = loo.adjustments;
+      lj["iterations"] = loo.iterations;
       lj["time_s"] = loo.time_s;
       j["leave_one_out"] = lj;
     } else {

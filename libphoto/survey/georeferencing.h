@@ -279,6 +279,7 @@ struct LeaveOneOut {
   std::vector<GroundPointResult> points;  // role kControl; d_m as a check point
   AccuracyStats stats;
   int adjustments = 0;
+  int iterations = 0;  // of every withheld point's re-solve, together
   double time_s = 0.0;
 };
 

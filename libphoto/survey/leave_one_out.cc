@@ -69,8 +69,9 @@ void LeaveControlOut(SurveyState* s) {
     Point& point = copy.points[p.point_index];
     point.prior.reset();
     point.role = PointRole::kCheck;
-    AdjustBundle(&copy, warm);
+    const BundleSummary solved = AdjustBundle(&copy, warm);
     ++loo.adjustments;
+    loo.iterations += solved.iterations;
     Eigen::Vector3d position = copy.points[p.point_index].position;
     GroundPointResult r = EvaluateGroundPoint(p.source->name, PointRole::kCheck, ViewsOf(copy, p.point_index),
                                               p.geodetic, s->Frame(), *s->out_crs, /*triangulate=*/!in_bundle,
