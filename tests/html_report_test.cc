@@ -254,6 +254,24 @@ TEST(HtmlReport, VarianceComponentsPerGroup) {
             std::string::npos);
 }
 
+// Check points with their w per axis against the predicted sigma, the
+// rejected one marked, and the test's size stated under the table.
+TEST(HtmlReport, CheckPointsShowTheirWAndTheTest) {
+  json r = WithAccuracy(Images(3, true), 2);
+  r["check_points"]["points"] = {
+      {{"name", "351"}, {"images", 4}, {"solved", true}, {"dx_m", 0.167}, {"dy_m", 0.008}, {"dz_m", -0.459},
+       {"reprojection_rms_px", 1.5}, {"w", {2.84, 0.20, -1.88}}, {"rejected", false}},
+      {{"name", "410"}, {"images", 3}, {"solved", true}, {"dx_m", 0.096}, {"dy_m", -0.296}, {"dz_m", 0.136},
+       {"reprojection_rms_px", 0.9}, {"w", {2.42, -7.26, 0.74}}, {"rejected", true}}};
+  r["check_points"]["test"] = {{"tests", 6}, {"family_alpha", 0.01}, {"critical_value", 3.14},
+                               {"predicted_from", "posterior covariance and survey sigmas"}};
+  const std::string html = RenderHtmlReport(r, "");
+  EXPECT_NE(html.find("<th>w x, y, z</th>"), std::string::npos);
+  EXPECT_NE(html.find("<td>2.8, 0.2, -1.9</td>"), std::string::npos) << html.substr(html.find("Check points"), 1500);
+  EXPECT_NE(html.find("<td class='warn'>2.4, -7.3, 0.7 (rejected)</td>"), std::string::npos);
+  EXPECT_NE(html.find("exceeds 3.14, the critical value at 1 % over all 6 axis tests"), std::string::npos);
+}
+
 // Data snooping states both levels: marks beyond the per-test value against
 // how many a clean survey expects, and the largest against the family-wise
 // value that decides MARK_BLUNDER.

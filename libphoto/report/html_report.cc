@@ -224,8 +224,11 @@ std::string PointTable(const json& group, const char* title) {
   std::ostringstream h;
   h << "<h3>" << title << " (" << group.value("count", 0) << ")</h3>";
   if (!group.contains("points") || group["points"].empty()) return h.str() + "<p>None.</p>";
+  // Check points tested against their predicted sigmas: w per axis.
+  const bool tested = group.contains("test");
   h << "<table><tr><th>name</th><th>images</th><th>dx (m)</th><th>dy (m)</th><th>dz (m)</th><th>3D (m)</th>"
-       "<th>&sigma;x, &sigma;y, &sigma;z (m)</th><th>reprojection RMS (px)</th></tr>";
+       "<th>&sigma;x, &sigma;y, &sigma;z (m)</th><th>reprojection RMS (px)</th>"
+    << (tested ? "<th>w x, y, z</th>" : "") << "</tr>";
   for (const auto& p : group["points"]) {
     h << "<tr><td>" << Escape(Text(p, "name", "")) << "</td><td>" << p.value("images", 0) << "</td>";
     if (p.value("solved", false)) {
@@ -236,14 +239,30 @@ std::string PointTable(const json& group, const char* title) {
                                           Num(Get(p, "sigma_z_m"))
                                     : std::string("–"))
         << "</td><td>" << Num(Get(p, "reprojection_rms_px"), 2) << "</td>";
+      if (tested && p.contains("w") && p["w"].is_array() && p["w"].size() == 3) {
+        const bool rejected = p.value("rejected", false);
+        h << "<td" << (rejected ? " class='warn'" : "") << ">" << Num(p["w"][0].get<double>(), 1) << ", "
+          << Num(p["w"][1].get<double>(), 1) << ", " << Num(p["w"][2].get<double>(), 1)
+          << (rejected ? " (rejected)" : "") << "</td>";
+      } else if (tested) {
+        h << "<td>–</td>";
+      }
     } else {
-      h << "<td colspan='6'>not solved: " << Escape(Text(p, "why_not", "")) << "</td>";
+      h << "<td colspan='" << (tested ? 7 : 6) << "'>not solved: " << Escape(Text(p, "why_not", "")) << "</td>";
     }
     h << "</tr>";
   }
   h << "<tr class='total'><td>RMSE</td><td></td><td>" << Num(Get(group, "rmse_x_m")) << "</td><td>"
     << Num(Get(group, "rmse_y_m")) << "</td><td>" << Num(Get(group, "rmse_z_m")) << "</td><td>"
-    << Num(Get(group, "rmse_3d_m")) << "</td><td></td><td></td></tr></table>";
+    << Num(Get(group, "rmse_3d_m")) << "</td><td></td><td></td>" << (tested ? "<td></td>" : "") << "</tr></table>";
+  if (tested) {
+    const json& t = group["test"];
+    h << "<p>Each residual is divided by its predicted sigma (the posterior sigma and the survey's, "
+         "root-sum-square): w. A point is rejected when an axis's |w| exceeds "
+      << Num(t.value("critical_value", 0.0), 2) << ", the critical value at "
+      << Num(100.0 * t.value("family_alpha", 0.0), 0) << " % over all " << t.value("tests", 0)
+      << " axis tests (predicted from " << Escape(t.value("predicted_from", std::string())) << ").</p>";
+  }
   return h.str();
 }
 
