@@ -131,11 +131,13 @@ double EstimatedFactor(const GeoreferenceReport& report, ObservationGroup group)
 }
 
 // The horizontal RMS of the GPS residuals over the RMS spread of the
-// registered cameras with GPS about their mean (the model's layout, ENU).
+// registered cameras with GPS about their mean (the model's layout, ENU);
+// 0 where the layout is too small for its GPS to draw it (a spread under
+// three times the stated horizontal sigma: photos from one spot).
 double GpsResidualOverLayout(const SparseModel& model, const GeoreferenceReport& report) {
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   int n = 0;
-  double residual2 = 0.0;
+  double residual2 = 0.0, stated2 = 0.0;
   std::vector<Eigen::Vector2d> centres;
   for (const CameraResult& c : report.cameras) {
     if (!c.has_prior || c.prior_rejected) continue;
@@ -144,6 +146,7 @@ double GpsResidualOverLayout(const SparseModel& model, const GeoreferenceReport&
       centres.push_back(image.pose.centre_in_world.head<2>());
       mean += centres.back();
       residual2 += c.d_enu_m.head<2>().squaredNorm();
+      stated2 += c.sigma_h_m * c.sigma_h_m;
       ++n;
     }
   }
@@ -151,7 +154,8 @@ double GpsResidualOverLayout(const SparseModel& model, const GeoreferenceReport&
   mean /= n;
   double spread2 = 0.0;
   for (const Eigen::Vector2d& c : centres) spread2 += (c - mean).squaredNorm();
-  return spread2 > 0.0 ? std::sqrt(residual2 / spread2) : 0.0;
+  if (!(spread2 > 9.0 * stated2)) return 0.0;
+  return std::sqrt(residual2 / spread2);
 }
 
 void GpsGates(const SparseModel& model, const QualityGates& gates, GeoreferenceReport* report) {
