@@ -44,6 +44,8 @@ def numbers(text, count, where):
 
 def read_rows(path, min_fields):
     rows = []
+    if not os.path.isfile(path):
+        fail(f"{path}: no such file (named in the project XML)")
     with open(path, encoding="utf-8") as f:
         for number, line in enumerate(f, 1):
             line = line.strip()
@@ -95,8 +97,14 @@ def main():
         sys.exit(2)
     project, out = sys.argv[1], sys.argv[2]
     base = os.path.dirname(os.path.abspath(project))
-    root = ET.parse(project).getroot()
+    try:
+        root = ET.parse(project).getroot()
+    except (OSError, ET.ParseError) as e:
+        fail(f"{project}: {e}: expected DBAT's project XML")
     inp = root.find("input")
+    for need in ("input", "input/images/file", "input/cameras/camera", "input/image_pts/file"):
+        if root.find(need) is None:
+            fail(f"{project}: no <{need}> element: expected DBAT's project XML (<document><input>...)")
     if inp.get("base_dir", "$HERE") != "$HERE":
         fail(f"{project}: input base_dir '{inp.get('base_dir')}': only $HERE is supported")
 
@@ -146,7 +154,10 @@ def main():
         for number, f in read_rows(path, 4):
             if f[1] not in images:
                 fail(f"{path}:{number}: image '{f[1]}': not in the project's image list")
-            mark = (images[f[1]], float(f[2]), float(f[3]), sigma)
+            try:
+                mark = (images[f[1]], float(f[2]), float(f[3]), sigma)
+            except ValueError:
+                fail(f"{path}:{number}: '{f[2]}, {f[3]}': expected pixel coordinates x, y")
             if f[0] in control or f[0] in checks:
                 marks.setdefault(f[0], []).append(mark)
             else:
