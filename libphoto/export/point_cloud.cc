@@ -2,12 +2,15 @@
 #include "libphoto/export/point_cloud.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <cerrno>
 #include <ctime>
 #include <fstream>
 #include <limits>
+#include <optional>
+#include <thread>
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
@@ -32,6 +35,20 @@ T Get(const std::string& data, size_t offset, const std::string& path) {
   T v;
   std::memcpy(&v, data.data() + offset, sizeof(T));
   return v;
+}
+
+bool HasLazExtension(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".laz";
+}
+
+void PutVlrHeader(std::ostream& out, const char* user, std::uint16_t record, std::size_t length, const char* what) {
+  Put<std::uint16_t>(out, 0);
+  PutChars(out, user, 16);
+  Put<std::uint16_t>(out, record);
+  Put<std::uint16_t>(out, static_cast<std::uint16_t>(length));
+  PutChars(out, what, 32);
 }
 
 }  // namespace
@@ -76,10 +93,16 @@ LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, con
   lo_ = lo;
   hi_ = hi;
   buffer_.resize(1 << 20);
+  if (HasLazExtension(path)) {
+    laz_ = std::make_unique<laz::ChunkEncoder>(7);
+    threads_ = std::max(1u, std::thread::hardware_concurrency());
+  }
+  const std::vector<std::uint8_t> laszip = laz_ ? laz::LaszipVlrPayload(7, laz::kDefaultChunkSize) : std::vector<std::uint8_t>();
   OpenForWriting(&out_, tmp_, path_);
   const std::string wkt = crs_wkt + std::string(1, '\0');
   const std::uint32_t vlr_size = 54 + static_cast<std::uint32_t>(wkt.size());
-  const std::uint32_t point_offset = 375 + (crs_wkt.empty() ? 0 : vlr_size);
+  const std::uint32_t laszip_size = laz_ ? 54 + static_cast<std::uint32_t>(laszip.size()) : 0;
+  const std::uint32_t point_offset = 375 + (crs_wkt.empty() ? 0 : vlr_size) + laszip_size;
   std::ostream& out = out_;
   out.write("LASF", 4);
   Put<std::uint16_t>(out, 0);                             // file source id
@@ -96,8 +119,8 @@ LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, con
   Put<std::uint16_t>(out, static_cast<std::uint16_t>(tm.tm_year + 1900));
   Put<std::uint16_t>(out, 375);
   Put<std::uint32_t>(out, point_offset);
-  Put<std::uint32_t>(out, crs_wkt.empty() ? 0 : 1);
-  Put<std::uint8_t>(out, 7);
+  Put<std::uint32_t>(out, (crs_wkt.empty() ? 0 : 1) + (laz_ ? 1 : 0));
+  Put<std::uint8_t>(out, laz_ ? 0x87 : 7);  // bit 7: compressed (LASzip's mark)
   Put<std::uint16_t>(out, 36);
   Put<std::uint32_t>(out, 0);  // legacy counts are 0 for formats 6-10
   for (int r = 0; r < 5; ++r) Put<std::uint32_t>(out, 0);
@@ -113,17 +136,22 @@ LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, con
   Put<std::uint64_t>(out, count);
   Put<std::uint64_t>(out, count);  // all first returns
   for (int r = 1; r < 15; ++r) Put<std::uint64_t>(out, 0);
+  if (laz_) {
+    PutVlrHeader(out, "laszip encoded", 22204, laszip.size(), "LAZ 1.4 layered chunked");
+    out.write(reinterpret_cast<const char*>(laszip.data()), static_cast<std::streamsize>(laszip.size()));
+  }
   if (!crs_wkt.empty()) {
-    Put<std::uint16_t>(out, 0);
-    PutChars(out, "LASF_Projection", 16);
-    Put<std::uint16_t>(out, 2112);
-    Put<std::uint16_t>(out, static_cast<std::uint16_t>(wkt.size()));
-    PutChars(out, "OGC WKT coordinate system", 32);
+    PutVlrHeader(out, "LASF_Projection", 2112, wkt.size(), "OGC WKT coordinate system");
     out.write(wkt.data(), static_cast<std::streamsize>(wkt.size()));
+  }
+  if (laz_) {
+    chunk_table_pointer_ = point_offset;
+    Put<std::int64_t>(out, -1);  // the chunk table's offset, set by Commit
   }
 }
 
 LasWriter::~LasWriter() {
+  for (auto& chunk : pending_) chunk.wait();  // before the buffers go
   if (committed_) return;
   out_.close();
   std::error_code ec;
@@ -131,23 +159,32 @@ LasWriter::~LasWriter() {
 }
 
 void LasWriter::Add(const Eigen::Vector3d& p, const std::array<std::uint8_t, 3>& c, std::uint8_t asprs_class) {
-  if (written_ >= count_) throw InvalidArgument(path_.string() + ": more points than the " + std::to_string(count_) + " announced");
   if ((p - lo_).minCoeff() < -1e-6 || (hi_ - p).minCoeff() < -1e-6) {
     throw InvalidArgument(path_.string() + ": a point outside the bounds announced in the header");
   }
-  char* record = buffer_.data() + used_;
-  std::memset(record, 0, 36);
+  std::uint8_t record[36] = {};
   const Eigen::Vector3d q = ((p - offset_) / kScale).array().round();
   const std::int32_t xyz[3] = {static_cast<std::int32_t>(q.x()), static_cast<std::int32_t>(q.y()),
                                static_cast<std::int32_t>(q.z())};
   std::memcpy(record, xyz, 12);
   record[14] = 0x11;  // return 1 of 1
-  record[16] = static_cast<char>(asprs_class);
+  record[16] = asprs_class;
   const std::uint16_t rgb[3] = {static_cast<std::uint16_t>(c[0] * 257), static_cast<std::uint16_t>(c[1] * 257),
                                 static_cast<std::uint16_t>(c[2] * 257)};
   std::memcpy(record + 30, rgb, 6);
-  used_ += 36;
+  AddRecord(record);
+}
+
+void LasWriter::AddRecord(const std::uint8_t* record) {
+  if (written_ >= count_) throw InvalidArgument(path_.string() + ": more points than the " + std::to_string(count_) + " announced");
   ++written_;
+  if (laz_) {
+    laz_->Add(record);
+    if (laz_->points() == laz::kDefaultChunkSize) WriteChunk();
+    return;
+  }
+  std::memcpy(buffer_.data() + used_, record, 36);
+  used_ += 36;
   if (used_ + 36 > buffer_.size()) Flush();
 }
 
@@ -156,12 +193,38 @@ void LasWriter::Flush() {
   used_ = 0;
 }
 
+// A full chunk is compressed on a thread of its own while the next one
+// fills (chunks are independent); at most `threads_` wait, so memory stays
+// a few chunks. They reach the file in order.
+void LasWriter::WriteChunk() {
+  chunks_.push_back({laz_->points(), 0});
+  pending_.push_back(std::async(std::launch::async, [chunk = laz_->Release()]() mutable { return chunk.Compress(); }));
+  while (pending_.size() > threads_) WriteOldestChunk();
+}
+
+void LasWriter::WriteOldestChunk() {
+  const std::vector<std::uint8_t> bytes = pending_.front().get();
+  pending_.erase(pending_.begin());
+  out_.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  chunks_[chunks_.size() - pending_.size() - 1].bytes = static_cast<std::uint32_t>(bytes.size());
+}
+
 void LasWriter::Commit() {
   if (written_ != count_) {
     throw InvalidArgument(path_.string() + ": " + std::to_string(written_) + " points written, " +
                           std::to_string(count_) + " announced");
   }
   Flush();
+  if (laz_) {
+    if (laz_->points() > 0) WriteChunk();
+    while (!pending_.empty()) WriteOldestChunk();
+    const std::int64_t table_at = static_cast<std::int64_t>(out_.tellp());
+    const std::vector<std::uint8_t> table = laz::EncodeChunkTable(chunks_, false);
+    out_.write(reinterpret_cast<const char*>(table.data()), static_cast<std::streamsize>(table.size()));
+    out_.seekp(static_cast<std::streamoff>(chunk_table_pointer_));
+    Put<std::int64_t>(out_, table_at);
+    out_.seekp(0, std::ios::end);
+  }
   CloseAndCommit(&out_, tmp_, path_);
   committed_ = true;
 }
@@ -231,6 +294,61 @@ void WritePly(const CrsCloud& cloud, const std::filesystem::path& path) {
   ply.Commit();
 }
 
+namespace {
+
+// The points of a LAZ file, chunk by chunk (the chunk table first: it is
+// written last, so a file cut short has none, or a wrong one).
+void ReadLazPoints(std::ifstream& in, const std::string& p, std::uint64_t point_offset, std::uint64_t data_end,
+                   std::uint64_t n, const laz::LaszipVlr& vlr, std::size_t record_length, std::size_t batch_points,
+                   const std::function<void(const std::string&, std::uint64_t)>& deliver) {
+  std::int64_t table_at = -1;
+  if (!in.seekg(static_cast<std::streamoff>(point_offset)) || !in.read(reinterpret_cast<char*>(&table_at), 8)) {
+    throw ParseError(p, 0, "truncated LAZ point data");
+  }
+  if (table_at <= static_cast<std::int64_t>(point_offset + 8) || static_cast<std::uint64_t>(table_at) >= data_end) {
+    throw ParseError(p, 0, "LAZ chunk table offset " + std::to_string(table_at) +
+                               " outside the point data (a file cut short, or never finished)");
+  }
+  std::string table(data_end - static_cast<std::uint64_t>(table_at), '\0');
+  if (!in.seekg(table_at) || !in.read(table.data(), static_cast<std::streamsize>(table.size()))) {
+    throw ParseError(p, 0, "truncated LAZ chunk table");
+  }
+  const std::vector<laz::Chunk> chunks = laz::DecodeChunkTable(reinterpret_cast<const std::uint8_t*>(table.data()),
+                                                               table.size(), vlr.chunk_size, n, p.c_str());
+  std::uint64_t total = 0, bytes = 0;
+  for (const laz::Chunk& c : chunks) {
+    total += c.points;
+    bytes += c.bytes;
+  }
+  if (total != n || point_offset + 8 + bytes != static_cast<std::uint64_t>(table_at)) {
+    throw ParseError(p, 0, "LAZ chunk table (" + std::to_string(total) + " points in " + std::to_string(bytes) +
+                               " bytes) does not match the header's " + std::to_string(n) + " points");
+  }
+  in.seekg(static_cast<std::streamoff>(point_offset + 8));
+  std::string chunk, records;
+  std::uint64_t held = 0;
+  for (const laz::Chunk& c : chunks) {
+    chunk.resize(c.bytes);
+    if (!in.read(chunk.data(), static_cast<std::streamsize>(c.bytes))) throw ParseError(p, 0, "truncated LAZ chunk");
+    laz::ChunkDecoder decoder(vlr.point_format, reinterpret_cast<const std::uint8_t*>(chunk.data()), chunk.size(), p.c_str());
+    if (decoder.points() != c.points) {
+      throw ParseError(p, 0, "LAZ chunk of " + std::to_string(decoder.points()) + " points where the table says " +
+                                 std::to_string(c.points));
+    }
+    for (std::uint32_t i = 0; i < c.points; ++i) {
+      records.resize((held + 1) * record_length);
+      decoder.Next(reinterpret_cast<std::uint8_t*>(records.data()) + held * record_length);
+      if (++held == batch_points) {
+        deliver(records, held);
+        held = 0;
+      }
+    }
+  }
+  if (held) deliver(records, held);
+}
+
+}  // namespace
+
 LasHeader ReadLasInBatches(const std::filesystem::path& path, const std::function<void(CrsCloud&&)>& consume,
                            std::size_t batch_points) {
   const std::string p = path.string();
@@ -269,24 +387,21 @@ LasHeader ReadLasInBatches(const std::filesystem::path& path, const std::functio
   }
   LasHeader header;
   header.count = n;
+  const bool compressed = (Get<std::uint8_t>(head, 104, p) & 0xC0) != 0;
+  std::optional<laz::LaszipVlr> laszip;
   size_t off = header_size;
   for (std::uint32_t v = 0; v < num_vlrs; ++v) {
     const auto record_id = Get<std::uint16_t>(head, off + 18, p);
     const auto length = Get<std::uint16_t>(head, off + 20, p);
-    if (record_id == 2112 && off + 54 + length <= head.size()) {
-      header.crs_wkt = std::string(head.c_str() + off + 54);
+    if (off + 54 + length > head.size()) throw ParseError(p, 0, "VLR " + std::to_string(v) + " runs past the point data");
+    if (record_id == 2112) header.crs_wkt = std::string(head.c_str() + off + 54);
+    if (record_id == 22204 && head.compare(off + 2, 14, "laszip encoded") == 0) {
+      laszip = laz::ParseLaszipVlr(reinterpret_cast<const std::uint8_t*>(head.data()) + off + 54, length, p.c_str());
     }
     off += 54 + length;
   }
-  if (record_length == 0 || point_offset + n * record_length > file_size) {
-    throw ParseError(p, 0, "truncated LAS point data");
-  }
-  batch_points = std::max<std::size_t>(1, batch_points);
-  std::string data;
-  for (std::uint64_t first = 0; first < n; first += batch_points) {
-    const std::uint64_t m = std::min<std::uint64_t>(batch_points, n - first);
-    data.resize(m * record_length);
-    if (!in.read(data.data(), static_cast<std::streamsize>(data.size()))) throw ParseError(p, 0, "truncated LAS point data");
+  // Each batch of records becomes a cloud.
+  const auto deliver = [&](const std::string& data, std::uint64_t m) {
     CrsCloud cloud;
     cloud.crs_wkt = header.crs_wkt;
     cloud.xyz.resize(m);
@@ -304,6 +419,28 @@ LasHeader ReadLasInBatches(const std::filesystem::path& path, const std::functio
       }
     }
     consume(std::move(cloud));
+  };
+  batch_points = std::max<std::size_t>(1, batch_points);
+  if (compressed) {
+    if (!laszip) throw ParseError(p, 0, "compressed point data (format byte " + std::to_string(Get<std::uint8_t>(head, 104, p)) + ") without a LASzip VLR");
+    if (laszip->point_format != format || record_length != (format == 7 ? 36 : 30)) {
+      throw ParseError(p, 0, "LAZ items (point format " + std::to_string(laszip->point_format) +
+                                 ") do not match the header's point format " + std::to_string(format) +
+                                 " of " + std::to_string(record_length) + " bytes");
+    }
+    const std::uint64_t evlrs = minor >= 4 && header_size >= 375 ? Get<std::uint64_t>(head, 235, p) : 0;
+    ReadLazPoints(in, p, point_offset, evlrs ? evlrs : file_size, n, *laszip, record_length, batch_points, deliver);
+    return header;
+  }
+  if (record_length == 0 || point_offset + n * record_length > file_size) {
+    throw ParseError(p, 0, "truncated LAS point data");
+  }
+  std::string data;
+  for (std::uint64_t first = 0; first < n; first += batch_points) {
+    const std::uint64_t m = std::min<std::uint64_t>(batch_points, n - first);
+    data.resize(m * record_length);
+    if (!in.read(data.data(), static_cast<std::streamsize>(data.size()))) throw ParseError(p, 0, "truncated LAS point data");
+    deliver(data, m);
   }
   return header;
 }

@@ -11,6 +11,9 @@
 // 1, unclassified, when absent).
 // PLY: binary little-endian, double x y z in the output CRS, uchar RGB, the
 // CRS named in a comment.
+// LAZ: a path ending in .laz is written compressed (laz.h: LASzip's LAS 1.4
+// layered compression, chunks of 50,000 points; the same records), and read
+// back the same way.
 
 #include <Eigen/Core>
 #include <array>
@@ -18,8 +21,12 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <future>
 #include <string>
+#include <memory>
 #include <vector>
+
+#include "libphoto/export/laz.h"
 
 namespace aerotri {
 
@@ -38,6 +45,7 @@ void WritePly(const CrsCloud& cloud, const std::filesystem::path& path);
 // header, with the count and bounds known beforehand, then the points, then
 // Commit() renames the finished file onto path. Destroyed uncommitted (an
 // exception on the way), the temporary file is removed and path untouched.
+// A .laz path holds one chunk in memory, never the cloud.
 class LasWriter {
  public:
   LasWriter(const std::filesystem::path& path, std::uint64_t count, const Eigen::Vector3d& lo,
@@ -46,12 +54,24 @@ class LasWriter {
   LasWriter(const LasWriter&) = delete;
   LasWriter& operator=(const LasWriter&) = delete;
   void Add(const Eigen::Vector3d& p, const std::array<std::uint8_t, 3>& rgb, std::uint8_t asprs_class);
+  // A whole point record of format 7 (36 bytes: intensity, returns, GPS
+  // time... as the caller has them), its X, Y, Z integers on the header's
+  // grid: (p - offset()) / 0.001.
+  void AddRecord(const std::uint8_t* record);
+  const Eigen::Vector3d& offset() const { return offset_; }
   void Commit();  // throws unless exactly `count` points were added
 
  private:
   void Flush();
+  void WriteChunk();
+  void WriteOldestChunk();
   static constexpr double kScale = 0.001;
   std::filesystem::path path_, tmp_;
+  std::unique_ptr<laz::ChunkEncoder> laz_;  // null: plain LAS
+  std::vector<std::future<std::vector<std::uint8_t>>> pending_;  // chunks being compressed, in file order
+  unsigned threads_ = 1;
+  std::vector<laz::Chunk> chunks_;
+  std::uint64_t chunk_table_pointer_ = 0;  // where the chunk table's offset goes
   std::ofstream out_;
   std::vector<char> buffer_;
   std::size_t used_ = 0;
@@ -79,7 +99,8 @@ class PlyWriter {
 };
 
 // Reads LAS 1.2-1.4 point formats 0-3 and 6-8 (XYZ, classes, RGB where
-// present, the WKT VLR where present). Throws ParseError for anything else.
+// present, the WKT VLR where present), and LAZ of formats 6 and 7 (laz.h).
+// Throws ParseError for anything else, and for a truncated file.
 CrsCloud ReadLas(const std::filesystem::path& path);
 
 // The same, batch_points at a time, for a cloud too large to hold; returns

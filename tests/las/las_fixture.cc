@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Writes a LAS 1.4 and a PLY of known points (EPSG:32632) and the expected
-// values as JSON, for the independent reader check (tests/las/check_las.mjs).
-//   las_fixture OUT.las OUT.ply EXPECTED.json
+// values as JSON, for the independent reader check (tests/las/check_las.mjs),
+// and the same cloud as LAZ (tests/las/check_laz.mjs).
+//   las_fixture OUT.las OUT.ply EXPECTED.json [OUT.laz]
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -10,7 +11,7 @@
 #include "libphoto/export/point_cloud.h"
 
 int main(int argc, char** argv) {
-  if (argc != 4) return 2;
+  if (argc != 4 && argc != 5) return 2;
   aerotri::CrsCloud cloud;
   const aerotri::Crs crs = aerotri::Crs::FromString("EPSG:32632");
   cloud.crs_wkt = crs.WktV1();
@@ -34,6 +35,7 @@ int main(int argc, char** argv) {
   expected["max"] = {384900.0 + 0.0123 * 999, 5150700.0, 500.096};
   aerotri::WriteLas(cloud, argv[1]);
   aerotri::WritePly(cloud, argv[2]);
+  if (argc == 5) aerotri::WriteLas(cloud, argv[4]);
   std::ofstream(argv[3]) << expected.dump(2);
   return 0;
 }
