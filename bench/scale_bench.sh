@@ -51,7 +51,7 @@ total = sum(v["wall_s"] for v in t.values())
 peak_stage = max(t, key=lambda k: t[k].get("peak_rss_mb", 0))
 peak = max(v.get("process_peak_rss_mb", v.get("peak_rss_mb", 0)) for v in t.values())
 cp = r.get("check_points", {})
-deliverables = {"cloud.las", "cloud.ply", "dsm.tif", "dtm.tif", "ortho.tif", "contours.gpkg", "report.html",
+deliverables = {"cloud.las", "cloud.laz", "cloud.copc.laz", "cloud.ply", "dsm.tif", "dtm.tif", "ortho.tif", "contours.gpkg", "report.html",
                 "report.json", "cameras.csv", "cameras.gpkg", "exterior_orientation.csv", "sparse"}
 interm = 0
 for root, dirs, files in os.walk(ws):

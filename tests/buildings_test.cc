@@ -79,7 +79,7 @@ TEST(Buildings, ClassifiedCloudDtmAndTrueOrthoMatchTheScene) {
 
   // Classes: points well inside a footprint are roofs, points 1.5 m clear of
   // every footprint ground; the band along the walls is left out.
-  const CrsCloud cloud = ReadLas(o.workspace / "cloud.las");
+  const CrsCloud cloud = ReadLas(o.workspace / "cloud.laz");
   ASSERT_EQ(cloud.classes.size(), cloud.xyz.size());
   long long truth_ground = 0, truth_ground_found = 0, said_ground = 0, said_ground_right = 0, roofs = 0, roofs_found = 0;
   for (size_t i = 0; i < cloud.xyz.size(); ++i) {

@@ -21,7 +21,7 @@ TEST(Cleanup, RemovesTheDepthMapsAndNothingElseUnlessKept) {
   std::ofstream(dir / "depth" / "IMG_0001.JPG+IMG_0002.JPG.pts") << std::string(3 << 20, 'x');
   std::filesystem::create_directories(dir / "features");
   const std::vector<std::string> kept = {"features/IMG_0001.JPG.sift", "matches.bin", "report.json", "report.html",
-                                         "cloud.las", "dsm.tif", "dense.json"};
+                                         "cloud.laz", "dsm.tif", "dense.json"};
   for (const auto& f : kept) std::ofstream(dir / f) << "data";
   // Asked to keep them: kept, silently.
   o.keep_depth_maps = true;

@@ -231,9 +231,15 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
   // The report samples the DSM at the check points.
   EXPECT_EQ(report["dsm"]["check_points"]["count"], 4);
   EXPECT_LT(report["dsm"]["check_points"]["rmse_z_m"].get<double>(), 3.0 * gsd);
-  // LAS: our reader gets back the points in the CRS, millimetre-quantised.
-  const CrsCloud las = ReadLas(o.workspace / "cloud.las");
+  // LAZ by default: our reader gets back the points in the CRS, millimetre-quantised.
+  const CrsCloud las = ReadLas(o.workspace / "cloud.laz");
   EXPECT_EQ(static_cast<long long>(las.xyz.size()), report["dense"]["points"].get<long long>());
+  const auto& cloud = report["dense"]["cloud"];
+  EXPECT_EQ(cloud["file"], "cloud.laz");
+  EXPECT_EQ(cloud["bytes"].get<std::uintmax_t>(), fs::file_size(o.workspace / "cloud.laz"));
+  EXPECT_LT(cloud["compression_ratio"].get<double>(), 0.3);
+  EXPECT_GT(cloud["compression_ratio"].get<double>(), 0.02);
+  EXPECT_FALSE(fs::exists(o.workspace / "cloud.las"));
   // Open meadow: nearly every point is ground (ASPRS 2), none unclassified 0.
   const long long ground = std::count(las.classes.begin(), las.classes.end(), 2);
   EXPECT_GT(ground, static_cast<long long>(0.95 * las.classes.size()));
@@ -248,7 +254,7 @@ TEST_F(Pipeline, DsmMatchesTheTruthTerrain) {
                              "Camera positions against GPS", "Reprojection error per image", "Coverage",
                              "tested to meet ASPRS", "check points:</b> ASPRS 2023 asks for at least 30",
                              "<h2>Camera calibration</h2>", "radial</tspan>", "<h2>Tie points</h2>", "height (m)",
-                             "points/m&sup2;", "<h2>Processing</h2>", "@media print", "LAZ not written: Debian 12"}) {
+                             "points/m&sup2;", "<h2>Processing</h2>", "@media print", "Cloud: cloud.laz (LAZ: LAS 1.4 compressed"}) {
     EXPECT_NE(html.find(needle), std::string::npos) << needle;
   }
 }
@@ -351,11 +357,11 @@ TEST_F(Pipeline, InterruptedDenseStageResumesToTheSameCloud) {
   EXPECT_FALSE(fs::exists(o.workspace / "depth"));
   // Kept on request: the cloud rebuilt from new maps is the same cloud.
   o.keep_depth_maps = true;
-  fs::remove(o.workspace / "cloud.las");
+  fs::remove(o.workspace / "cloud.laz");
   EXPECT_TRUE(RunDenseStage(o));
   EXPECT_EQ(nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"))["points"], before["points"]);
   // Interrupted after some depth maps: the cloud is missing, one depth map too.
-  fs::remove(o.workspace / "cloud.las");
+  fs::remove(o.workspace / "cloud.laz");
   std::vector<fs::path> depth;
   for (const auto& e : fs::directory_iterator(o.workspace / "depth")) depth.push_back(e.path());
   ASSERT_GT(depth.size(), 3u);
@@ -364,6 +370,17 @@ TEST_F(Pipeline, InterruptedDenseStageResumesToTheSameCloud) {
   EXPECT_TRUE(fs::exists(depth[1]));
   const auto after = nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"));
   EXPECT_EQ(after["points"], before["points"]);
+  // Another cloud format is an option changed: the stage reruns, writes
+  // cloud.las with the same points, and the earlier run's LAZ goes.
+  const CrsCloud laz = ReadLas(o.workspace / "cloud.laz");
+  o.cloud_format = "las";
+  EXPECT_TRUE(RunDenseStage(o));
+  EXPECT_FALSE(fs::exists(o.workspace / "cloud.laz"));
+  const CrsCloud las = ReadLas(o.workspace / "cloud.las");
+  ASSERT_EQ(las.xyz.size(), laz.xyz.size());
+  EXPECT_EQ(las.xyz, laz.xyz);
+  EXPECT_EQ(las.classes, laz.classes);
+  EXPECT_EQ(nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"))["cloud"]["file"], "cloud.las");
 }
 
 TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
@@ -378,10 +395,10 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
   EXPECT_EQ(before.at("provenance").at("options").at("georeference"), before.at("georeference_options"));
   EXPECT_EQ(before.at("provenance").at("options").at("ingest").value("gps_altitude", ""), "egm96");
   EXPECT_EQ(before.at("dense").value("options", nlohmann::json::object()).value("dsm_fill_m", -1.0), o.dsm_fill_m);
-  // A product damaged since it was written (here cloud.las, truncated) is
+  // A product damaged since it was written (here cloud.laz, truncated) is
   // rebuilt on resume, never read, and the report is redone after it.
   {
-    const auto las = o.workspace / "cloud.las";
+    const auto las = o.workspace / "cloud.laz";
     const auto bytes = std::filesystem::file_size(las);
     std::filesystem::resize_file(las, bytes / 2);
     EXPECT_TRUE(RunDenseStage(o));
@@ -389,7 +406,7 @@ TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {
     EXPECT_TRUE(RunReportStage(o));
     EXPECT_FALSE(RunDenseStage(o));  // intact now: resumed, not redone
   }
-  // aerotri dem: another resolution from cloud.las.
+  // aerotri dem: another resolution from cloud.laz.
   o.dsm_resolution_m = 0.5;
   RebuildDsm(o, o.workspace / "dsm_0.5m.tif");
   const Raster coarse = ReadRaster(o.workspace / "dsm_0.5m.tif");

@@ -58,7 +58,7 @@ TEST(RealPhotos, BeachDroneSetRegistersEveryPhotoAndGivesADsm) {
   ASSERT_TRUE(r.contains("dense")) << r.dump(1);
   EXPECT_GT(r["dense"]["points"].get<long long>(), 1000000);
   EXPECT_TRUE(fs::exists(dir.path() / "dsm.tif"));
-  EXPECT_TRUE(fs::exists(dir.path() / "cloud.las"));
+  EXPECT_TRUE(fs::exists(dir.path() / "cloud.laz"));
   // The DSM against the ground the photos cover: 95.3 % measured (83.2 %
   // while rectified frames cut the strips' rims, flown here at 45 deg yaw);
   // what is left is water and the forest's edge.

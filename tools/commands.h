@@ -180,6 +180,7 @@ struct RunArgs {
   double dsm_resolution_m = 0.0;
   double dsm_fill_m = 2.0;
   bool cog = false;
+  std::string cloud_format = "laz";
   std::string heights = "egm96";
   double ground_cell_m = 0.5;
   double ground_window_m = 18.0;

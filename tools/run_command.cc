@@ -49,6 +49,10 @@ void AddTerrainOptions(CLI::App* cmd, RunArgs* a) {
   cmd->add_option("--ground-threshold", a->ground_threshold_m,
                   "Ground filter: points within this height of the ground surface are ground (metres)")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--cloud-format", a->cloud_format,
+                  "The dense cloud's file: laz (cloud.laz: LAS 1.4 compressed as LASzip does, about an eighth of "
+                  "the size) or las (cloud.las, uncompressed)")
+      ->check(CLI::IsMember({"laz", "las"}))->capture_default_str();
   cmd->add_option("--contour-interval", a->contour_interval_m,
                   "Contour interval (metres); 0 = a round number near a twentieth of the relief")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
@@ -245,7 +249,7 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
        kReconstructOptions | kThreadsOption},
       {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
                        "OUTPUT/report.json", false, kGeoreferenceOptions | kThreadsOption},
-      {"dense", "Dense matching and the deliverables: OUTPUT/cloud.las (ground-classified), cloud.ply, dsm.tif, "
+      {"dense", "Dense matching and the deliverables: OUTPUT/cloud.laz (ground-classified), cloud.ply, dsm.tif, "
                 "dtm.tif, contours.gpkg", false, kDenseOptions | kThreadsOption},
       {"ortho", "Orthomosaic through the DSM (or DTM): OUTPUT/ortho.tif, a Cloud-Optimised GeoTIFF", false,
        kOrthoOptions | kThreadsOption},
@@ -263,7 +267,7 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
   {
     auto a = std::make_shared<RunArgs>();
     a->stage = "dem";
-    CLI::App* cmd = app.add_subcommand("dem", "Rebuild a DSM from an existing survey's cloud.las at another resolution");
+    CLI::App* cmd = app.add_subcommand("dem", "Rebuild a DSM from an existing survey's cloud (LAZ or LAS) at another resolution");
     AddWorkspaceOption(cmd, &a->output, /*must_exist=*/true);
     cmd->add_option("--dsm-output", a->dem_output, "DSM file to write (default: OUTPUT/dsm_<resolution>m.tif)");
     AddDsmOptions(cmd, a.get());
@@ -373,6 +377,7 @@ PipelineOptions PipelineOptionsOf(const RunArgs& a, ToolContext& ctx) {
   o.dsm_resolution_m = a.dsm_resolution_m;
   o.dsm_fill_m = a.dsm_fill_m;
   o.cog = a.cog;
+  o.cloud_format = a.cloud_format;
   o.heights = a.heights;
   o.ground_cell_m = a.ground_cell_m;
   o.ground_window_m = a.ground_window_m;

@@ -40,6 +40,12 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
+std::string CloudFileName(const PipelineOptions& o) {
+  if (o.cloud_format == "las") return "cloud.las";
+  if (o.cloud_format == "copc") return "cloud.copc.laz";
+  return "cloud.laz";
+}
+
 namespace {
 
 struct GeoFrame {
@@ -925,11 +931,34 @@ void WriteTerrainProducts(const PipelineOptions& o, const CloudProducts& made, c
   }
 }
 
+// What the cloud file holds, for dense.json and the report: its format and
+// size, and the size of the same points as uncompressed LAS.
+json CloudSummary(const PipelineOptions& o, const fs::path& file, std::uint64_t points) {
+  const std::uintmax_t bytes = fs::file_size(file);
+  const std::uint64_t las_bytes = 375 + 54 + 512 + 36 * points;  // header, CRS record, records (about)
+  json c = {{"file", CloudFileName(o)}, {"format", o.cloud_format}, {"points", points}, {"bytes", bytes},
+            {"uncompressed_las_bytes", las_bytes}};
+  if (o.cloud_format != "las") c["compression_ratio"] = static_cast<double>(bytes) / static_cast<double>(las_bytes);
+  return c;
+}
+
+// The cloud a finished dense stage wrote: as dense.json records it, else
+// the file of this run's format, else whichever is there.
+std::string CloudFileOf(const PipelineOptions& o, const json& dense) {
+  const std::string recorded = dense.value("cloud", json::object()).value("file", "");
+  if (!recorded.empty()) return recorded;
+  if (fs::exists(o.workspace / CloudFileName(o))) return CloudFileName(o);
+  for (const char* name : {"cloud.laz", "cloud.copc.laz", "cloud.las"}) {
+    if (fs::exists(o.workspace / name)) return name;
+  }
+  return CloudFileName(o);
+}
+
 }  // namespace
 
 bool RunDenseStage(const PipelineOptions& o) {
   if (o.dense_step == DenseStep::kDepthShare || o.dense_step == DenseStep::kFuseShare) return RunDenseShare(o);
-  const fs::path las = o.workspace / "cloud.las", ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
+  const fs::path las = o.workspace / CloudFileName(o), ply = o.workspace / "cloud.ply", dsm = o.workspace / "dsm.tif";
   const fs::path dtm = o.workspace / "dtm.tif", contours = o.workspace / "contours.gpkg";
   bool rerun = o.force;
   if (fs::exists(las) && fs::exists(ply) && fs::exists(dsm) && fs::exists(dtm) && fs::exists(contours) && !o.force) {
@@ -1034,7 +1063,11 @@ bool RunDenseStage(const PipelineOptions& o) {
   WriteDsmRaster(made.dsm, made.dsm_summary, products.dsm.resolution_m, o, status, heights, dsm, &dsm_info);
   json dtm_info = json::object(), contour_info = json::object(), ground_info = json::object();
   WriteTerrainProducts(o, made, products, status, heights, classify, &dtm_info, &contour_info, &ground_info);
-  json file_bytes = {{"cloud.las", fs::file_size(las)}, {"cloud.ply", fs::file_size(ply)},
+  // A cloud of another format, of an earlier run, is not this run's.
+  for (const char* other : {"cloud.las", "cloud.laz", "cloud.copc.laz"}) {
+    if (other != CloudFileName(o)) fs::remove(o.workspace / other);
+  }
+  json file_bytes = {{CloudFileName(o), fs::file_size(las)}, {"cloud.ply", fs::file_size(ply)},
                      {"dsm.tif", fs::file_size(dsm)}};
   if (fs::exists(dtm)) file_bytes["dtm.tif"] = fs::file_size(dtm);
   if (fs::exists(contours)) file_bytes["contours.gpkg"] = fs::file_size(contours);
@@ -1052,7 +1085,8 @@ bool RunDenseStage(const PipelineOptions& o) {
                       {"contours", contour_info},
                       {"ground", ground_info},
                       {"options", DenseFingerprint(o)},
-                      {"file_bytes", file_bytes}};
+                      {"file_bytes", file_bytes},
+                      {"cloud", CloudSummary(o, las, points)}};
   WriteTextFileAtomically(o.workspace / "dense.json", dense.dump(2) + "\n");
   remove_fused_points();
   fs::remove(o.workspace / "report.html");  // its DSM figures are stale: the report stage reruns
@@ -1083,9 +1117,8 @@ bool RunReportStage(const PipelineOptions& o) {
     const GeoFrame deliverable = DeliverableFrame(report, dense);
     const Raster dsm = ReadRaster(o.workspace / "dsm.tif");
     report["dense"] = {{"points", dense["points"]}, {"resolution_m", dense["resolution_m"]},
-                       {"pairs", dense["pairs"]}, {"files", {"cloud.las", "cloud.ply"}},
-                       {"laz", "not written: Debian 12 packages no LAZ library (LASzip, LAZperf or PDAL); "
-                               "laszip or pdal translate compress cloud.las losslessly"},
+                       {"pairs", dense["pairs"]}, {"files", {CloudFileOf(o, dense), "cloud.ply"}},
+                       {"cloud", dense.value("cloud", json::object())},
                        {"options", dense.value("options", json::object())}};
     report["heights"] = {{"crs", deliverable.crs.definition()},
                          {"crs_name", deliverable.crs.Name()},
@@ -1354,7 +1387,8 @@ fs::path RebuildDsm(const PipelineOptions& o, fs::path path) {
     path = o.workspace / name;
   }
   const json dense = fs::exists(o.workspace / "dense.json") ? ReadJson(o.workspace / "dense.json", "dense") : json::object();
-  const GeoFrame g = DeliverableFrame(report, dense);  // cloud.las is in it
+  const GeoFrame g = DeliverableFrame(report, dense);  // the cloud is in it
+  const fs::path cloud = o.workspace / CloudFileOf(o, dense);
   // The cloud read in batches into CRS tiles, and the DSM made tile by
   // tile, as the dense stage makes it: never the whole cloud in memory.
   CloudProductOptions products;
@@ -1367,11 +1401,11 @@ fs::path RebuildDsm(const PipelineOptions& o, fs::path path) {
   const double spacing = dense.value("resolution_m", 0.0) > 0 ? dense.value("resolution_m", 0.0) : resolution / 2;
   TiledCloud tiles(o.workspace / (path.filename().string() + ".tiles"), std::max(20.0, 1000.0 * spacing),
                    CloudProductsHalo(products));
-  ReadLasInBatches(o.workspace / "cloud.las", [&](CrsCloud&& batch) { tiles.Add(batch.xyz, batch.rgb); });
+  ReadLasInBatches(cloud, [&](CrsCloud&& batch) { tiles.Add(batch.xyz, batch.rgb); });
   tiles.Finish();
   if (tiles.count() == 0) {
     tiles.Remove();
-    throw InvalidArgument((o.workspace / "cloud.las").string() + ": no points");
+    throw InvalidArgument(cloud.string() + ": no points");
   }
   const CloudProducts made = WriteCloudProducts(tiles, {}, {}, products, StageProgress(o, "dem"));
   tiles.Remove();

@@ -495,7 +495,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
   fs::remove_all(o.workspace / "depth");  // depth maps of an earlier model are stale
   fs::remove_all(o.workspace / "dense_parts");  // and so are a workflow's dense shares
-  for (const char* stale : {"cloud.las", "cloud.ply", "dsm.tif", "dense.json", "report.html"}) {
+  for (const char* stale : {"cloud.las", "cloud.laz", "cloud.copc.laz", "cloud.ply", "dsm.tif", "dense.json", "report.html"}) {
     fs::remove(o.workspace / stale);  // so are the deliverables: the dense stage reruns
   }
   // The working-resolution model in ENU feeds dense matching.

@@ -13,7 +13,7 @@
 //   georeference sparse/ (COLMAP text, ENU metres, full-resolution pixels),
 //                georeferenced/ (the same at the working resolution),
 //                cameras.csv (positions in the output CRS), report.json
-//   dense        cloud.las (ground-classified), cloud.ply, dsm.tif, dtm.tif,
+//   dense        cloud.laz (ground-classified; or .las, .copc.laz), cloud.ply, dsm.tif, dtm.tif,
 //                contours.gpkg (the deliverable CRS: heights stated)
 //   ortho        ortho.tif (RGB + alpha Cloud-Optimised GeoTIFF)
 //   report       report.json completed (DSM at check points, coverage) and
@@ -82,6 +82,7 @@ struct PipelineOptions {
   double dsm_resolution_m = 0.0;    // 0: twice the dense resolution
   double dsm_fill_m = 2.0;          // holes filled up to this distance
   bool cog = false;                 // Cloud-Optimised GeoTIFF (DSM, DTM)
+  std::string cloud_format = "laz";  // las, laz or copc: cloud.las, cloud.laz, cloud.copc.laz
   // Heights of the deliverables under a 2D output CRS given as an EPSG code:
   // "egm96" (the default: the compound CRS code+5773, EGM96 heights, when
   // PROJ's geoid grid is present) or "ellipsoidal" (the CRS's own WGS84
@@ -155,7 +156,11 @@ void RemoveDepthMaps(const PipelineOptions& options);
 // report.json's status in a workspace, or "" before the georeference stage.
 std::string SurveyStatusOf(const std::filesystem::path& workspace);
 
-// Rebuilds the DSM from OUTPUT/cloud.las at options.dsm_resolution_m (0: twice
+// The dense cloud's file name for options.cloud_format: cloud.las,
+// cloud.laz or cloud.copc.laz.
+std::string CloudFileName(const PipelineOptions& options);
+
+// Rebuilds the DSM from OUTPUT's cloud (LAS or LAZ) at options.dsm_resolution_m (0: twice
 // the dense spacing recorded in dense.json, as the dense stage chooses) into
 // path, by default OUTPUT/dsm_<resolution>m.tif. Returns the path written.
 std::filesystem::path RebuildDsm(const PipelineOptions& options, std::filesystem::path path = {});

@@ -375,6 +375,7 @@ nlohmann::json DenseFingerprint(const PipelineOptions& o) {
           {"heights", o.heights},                       {"ground_cell_m", o.ground_cell_m},
           {"ground_window_m", o.ground_window_m},       {"ground_slope", o.ground_slope},
           {"ground_threshold_m", o.ground_threshold_m}, {"contour_interval_m", o.contour_interval_m},
+          {"cloud_format", o.cloud_format},
           // The pairing and fusion rules (dense_stereo.h): a workspace fused
           // under older rules is fused again.
           {"dense_method", "pairs: 2 along + 1 across the strip; agreement within 1 voxel; a lone depth map kept"}};

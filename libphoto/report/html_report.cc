@@ -487,6 +487,28 @@ std::string CoverageMap(const json& cov) {
 
 // The DSM preview with its elevation legend and a scale bar, scaling with
 // the page (one SVG, the image inside it).
+// The cloud file: its name, format and size (LAZ: against the same points
+// uncompressed), with the classes it carries.
+std::string CloudSentence(const json& c) {
+  std::ostringstream s;
+  const std::string file = Text(c, "file", "cloud.las");
+  const std::string format = Text(c, "format", "las");
+  s << "Cloud: " << Escape(file) << " ("
+    << (format == "laz" ? "LAZ: LAS 1.4 compressed as LASzip does"
+                        : format == "copc" ? "COPC: LAZ 1.4 in an octree, read in place by QGIS, PDAL and web viewers"
+                                           : "LAS 1.4, uncompressed")
+    << "; ASPRS classes 2 ground, 1 above ground, 7 noise)";
+  if (c.contains("bytes")) {
+    s << ", " << Num(Get(c, "bytes") / 1e6, 1) << " MB";
+    if (format != "las") {
+      s << ", " << Num(100.0 * Get(c, "compression_ratio", NAN), 1) << " % of the "
+        << Num(Get(c, "uncompressed_las_bytes") / 1e6, 1) << " MB of the same points as LAS";
+    }
+  }
+  s << "; and cloud.ply.";
+  return s.str();
+}
+
 std::string DsmFigure(const std::string& png, const json& preview) {
   const double w = Get(preview, "width_px", 600), hgt = Get(preview, "height_px", 400);
   const double mpp = Get(preview, "metres_per_px", NAN);
@@ -1048,7 +1070,7 @@ std::string ElevationSection(const json& r, const std::map<std::string, std::str
       << "points. Heights: " << Escape(Text(r.value("heights", json::object()), "description",
                                             "as " + Text(r, "crs", "") + " defines them"))
       << " (deliverables in " << Escape(Text(r.value("heights", json::object()), "crs", Text(r, "crs", "")))
-      << "). Cloud: cloud.las (LAS 1.4, ASPRS classes: 2 ground, 1 above ground, 7 noise) and cloud.ply; LAZ " << Escape(Text(r.value("dense", json::object()), "laz", "not written")) << ".</p>"
+      << "). " << CloudSentence(r.value("dense", json::object()).value("cloud", json::object())) << "</p>"
       << DsmFigure(hillshade_png, d.value("preview", json::object()));
     h << TerrainSection(r, png_of("dtm")) << OrthoSection(r, png_of("ortho"));
   } else if (r.contains("dense") && r["dense"].contains("skipped")) {
