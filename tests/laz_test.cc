@@ -7,9 +7,12 @@
 
 #include <filesystem>
 #include <fstream>
+#include <algorithm>
 #include <random>
+#include <tuple>
 
 #include "libphoto/base/error.h"
+#include "libphoto/export/copc.h"
 #include "libphoto/export/laz.h"
 #include "libphoto/export/point_cloud.h"
 #include "tests/las/laz_records.h"
@@ -133,6 +136,38 @@ TEST(Laz, ARecordOfAnotherScannerChannelIsRefused) {
     } else {
       encoder.Add(&records[36 * i]);
     }
+  }
+}
+
+// COPC through aerotri's own reader (the chunk table of varying chunks,
+// the EVLR after it), with the records spilled to the scratch file on the
+// way: the same points as the cloud, each once, in octree order.
+TEST(Copc, ReadsBackAsTheSamePointsEachOnceWithTheRecordsSpilledOnTheWay) {
+  const testing::TempDir dir;
+  const CrsCloud cloud = SomeCloud(250000);
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+  for (const auto& p : cloud.xyz) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  CopcWriter writer(dir / "c.copc.laz", cloud.xyz.size(), lo, hi, cloud.crs_wkt, 1 << 20);
+  EXPECT_EQ(writer.leaf_level(), 2);  // 250,000 points: leaves of about 16,000 over a surface
+  for (std::size_t i = 0; i < cloud.xyz.size(); ++i) writer.Add(cloud.xyz[i], cloud.rgb[i], cloud.classes[i]);
+  EXPECT_FALSE(std::filesystem::exists(dir / "c.copc.laz"));  // not before Commit
+  writer.Commit();
+  WriteLas(cloud, dir / "c.las");
+  const CrsCloud las = ReadLas(dir / "c.las"), copc = ReadLas(dir / "c.copc.laz");
+  EXPECT_EQ(copc.crs_wkt, las.crs_wkt);
+  auto sorted = [](const CrsCloud& c) {
+    std::vector<std::tuple<double, double, double, int, int>> v;
+    for (std::size_t i = 0; i < c.xyz.size(); ++i) v.emplace_back(c.xyz[i].x(), c.xyz[i].y(), c.xyz[i].z(), c.rgb[i][0], c.classes[i]);
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  EXPECT_EQ(sorted(copc), sorted(las));
+  EXPECT_NE(copc.xyz, las.xyz);  // reordered into the octree
+  for (const auto& e : std::filesystem::directory_iterator(dir.path())) {
+    EXPECT_EQ(e.path().string().find(".points"), std::string::npos) << "scratch left: " << e.path();
   }
 }
 

@@ -381,6 +381,16 @@ TEST_F(Pipeline, InterruptedDenseStageResumesToTheSameCloud) {
   EXPECT_EQ(las.xyz, laz.xyz);
   EXPECT_EQ(las.classes, laz.classes);
   EXPECT_EQ(nlohmann::json::parse(ReadTextFile(o.workspace / "dense.json"))["cloud"]["file"], "cloud.las");
+  // COPC: the same points again, in the octree's order.
+  o.cloud_format = "copc";
+  EXPECT_TRUE(RunDenseStage(o));
+  EXPECT_FALSE(fs::exists(o.workspace / "cloud.las"));
+  CrsCloud copc = ReadLas(o.workspace / "cloud.copc.laz");
+  auto sorted = [](std::vector<Eigen::Vector3d> v) {
+    std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return std::tie(a.x(), a.y(), a.z()) < std::tie(b.x(), b.y(), b.z()); });
+    return v;
+  };
+  EXPECT_EQ(sorted(copc.xyz), sorted(las.xyz));
 }
 
 TEST_F(Pipeline, DemAndCheckWorkOnAFinishedSurvey) {

@@ -51,8 +51,9 @@ void AddTerrainOptions(CLI::App* cmd, RunArgs* a) {
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--cloud-format", a->cloud_format,
                   "The dense cloud's file: laz (cloud.laz: LAS 1.4 compressed as LASzip does, about an eighth of "
-                  "the size) or las (cloud.las, uncompressed)")
-      ->check(CLI::IsMember({"laz", "las"}))->capture_default_str();
+                  "the size), copc (cloud.copc.laz: the same in an octree, a Cloud-Optimised Point Cloud that "
+                  "QGIS, PDAL and web viewers read in place) or las (cloud.las, uncompressed)")
+      ->check(CLI::IsMember({"laz", "copc", "las"}))->capture_default_str();
   cmd->add_option("--contour-interval", a->contour_interval_m,
                   "Contour interval (metres); 0 = a round number near a twentieth of the relief")
       ->check(CLI::NonNegativeNumber)->capture_default_str();

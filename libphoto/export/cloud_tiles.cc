@@ -13,6 +13,7 @@
 #include "libphoto/base/error.h"
 #include "libphoto/base/memory.h"
 #include "libphoto/base/parallel.h"
+#include "libphoto/export/copc.h"
 #include "libphoto/export/point_cloud.h"
 
 namespace aerotri {
@@ -198,8 +199,14 @@ CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem:
   Raster dtm = out.dsm;
   std::fill(dtm.values.begin(), dtm.values.end(), static_cast<float>(dtm.nodata));
   std::optional<LasWriter> las_writer;
+  std::optional<CopcWriter> copc_writer;  // a path ending in .copc.laz
   std::optional<PlyWriter> ply_writer;
-  if (!las.empty()) las_writer.emplace(las, cloud.count(), cloud.lo(), cloud.hi(), o.las_wkt);
+  const std::string las_name = las.filename().string();
+  if (las_name.size() > 9 && las_name.compare(las_name.size() - 9, 9, ".copc.laz") == 0) {
+    copc_writer.emplace(las, cloud.count(), cloud.lo(), cloud.hi(), o.las_wkt);
+  } else if (!las.empty()) {
+    las_writer.emplace(las, cloud.count(), cloud.lo(), cloud.hi(), o.las_wkt);
+  }
   if (!ply.empty()) ply_writer.emplace(ply, cloud.count(), o.crs_name);
   struct Done {
     CloudTile tile;
@@ -229,6 +236,7 @@ CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem:
         slots[k] = Done();
         for (std::size_t i = 0; i < d.tile.own; ++i) {
           if (las_writer) las_writer->Add(d.tile.xyz[i], d.tile.rgb[i], d.classes[i]);
+          if (copc_writer) copc_writer->Add(d.tile.xyz[i], d.tile.rgb[i], d.classes[i]);
           if (ply_writer) ply_writer->Add(d.tile.xyz[i], d.tile.rgb[i]);
         }
         out.ground.ground += d.summary.ground;
@@ -240,6 +248,7 @@ CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem:
       },
       2 * std::max(1u, o.threads));
   if (las_writer) las_writer->Commit();
+  if (copc_writer) copc_writer->Commit();
   if (ply_writer) ply_writer->Commit();
   if (filter) {
     out.ground.grid_width = filter->grid_width();

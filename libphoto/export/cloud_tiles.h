@@ -108,7 +108,8 @@ struct CloudProducts {
   DtmSummary dtm_summary;
 };
 
-// Writes las and ply (atomically; an empty path: not that file) and returns
+// Writes las and ply (atomically; an empty path: not that file; las may be
+// .las, .laz or .copc.laz) and returns
 // the DSM and DTM rasters.
 CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem::path& las,
                                  const std::filesystem::path& ply, const CloudProductOptions& options,

@@ -53,9 +53,8 @@ void PutVlrHeader(std::ostream& out, const char* user, std::uint16_t record, std
 
 }  // namespace
 
-namespace {
 
-void OpenForWriting(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path) {
+void OpenCloudFile(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path) {
   if (path.has_parent_path() && !std::filesystem::exists(path.parent_path())) {
     std::error_code ec;
     std::filesystem::create_directories(path.parent_path(), ec);
@@ -65,7 +64,7 @@ void OpenForWriting(std::ofstream* out, const std::filesystem::path& tmp, const 
   if (!*out) throw IoError(tmp.string(), std::string("cannot open for writing: ") + std::strerror(errno));
 }
 
-void CloseAndCommit(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path) {
+void CommitCloudFile(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path) {
   out->flush();
   const bool ok = static_cast<bool>(*out);
   const int e = errno;
@@ -79,35 +78,37 @@ void CloseAndCommit(std::ofstream* out, const std::filesystem::path& tmp, const 
   CommitTemporaryFile(tmp, path);
 }
 
-}  // namespace
 
-LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, const Eigen::Vector3d& lo_in,
-                     const Eigen::Vector3d& hi_in, const std::string& crs_wkt)
-    : path_(path), tmp_(TemporaryPathFor(path)), count_(count) {
-  Eigen::Vector3d lo = lo_in, hi = hi_in;
-  if (count == 0) lo = hi = Eigen::Vector3d::Zero();
-  offset_ = (lo.array() / 1000.0).floor() * 1000.0;
-  if (((hi - offset_) / kScale).maxCoeff() > 2.1e9 || ((lo - offset_) / kScale).minCoeff() < -2.1e9) {
+Eigen::Vector3d LasOffsetFor(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  const Eigen::Vector3d offset = (lo.array() / 1000.0).floor() * 1000.0;
+  if (((hi - offset) / kLasScale).maxCoeff() > 2.1e9 || ((lo - offset) / kLasScale).minCoeff() < -2.1e9) {
     throw InvalidArgument("LAS: the cloud spans more than 2,100 km at millimetre scale");
   }
-  lo_ = lo;
-  hi_ = hi;
-  buffer_.resize(1 << 20);
-  if (HasLazExtension(path)) {
-    laz_ = std::make_unique<laz::ChunkEncoder>(7);
-    threads_ = std::max(1u, std::thread::hardware_concurrency());
-  }
-  const std::vector<std::uint8_t> laszip = laz_ ? laz::LaszipVlrPayload(7, laz::kDefaultChunkSize) : std::vector<std::uint8_t>();
-  OpenForWriting(&out_, tmp_, path_);
-  const std::string wkt = crs_wkt + std::string(1, '\0');
-  const std::uint32_t vlr_size = 54 + static_cast<std::uint32_t>(wkt.size());
-  const std::uint32_t laszip_size = laz_ ? 54 + static_cast<std::uint32_t>(laszip.size()) : 0;
-  const std::uint32_t point_offset = 375 + (crs_wkt.empty() ? 0 : vlr_size) + laszip_size;
-  std::ostream& out = out_;
+  return offset;
+}
+
+void MakeLasRecord(const Eigen::Vector3d& p, const Eigen::Vector3d& offset, const std::array<std::uint8_t, 3>& c,
+                   std::uint8_t asprs_class, std::uint8_t* record) {
+  std::memset(record, 0, 36);
+  const Eigen::Vector3d q = ((p - offset) / kLasScale).array().round();
+  const std::int32_t xyz[3] = {static_cast<std::int32_t>(q.x()), static_cast<std::int32_t>(q.y()),
+                               static_cast<std::int32_t>(q.z())};
+  std::memcpy(record, xyz, 12);
+  record[14] = 0x11;  // return 1 of 1
+  record[16] = asprs_class;
+  const std::uint16_t rgb[3] = {static_cast<std::uint16_t>(c[0] * 257), static_cast<std::uint16_t>(c[1] * 257),
+                                static_cast<std::uint16_t>(c[2] * 257)};
+  std::memcpy(record + 30, rgb, 6);
+}
+
+std::uint32_t PutLasHeader(std::ostream& out, const LasHeaderLayout& h) {
+  std::uint32_t point_offset = 375;
+  for (const LasVlr& v : h.vlrs) point_offset += 54 + static_cast<std::uint32_t>(v.payload.size());
+  const bool wkt = std::any_of(h.vlrs.begin(), h.vlrs.end(), [](const LasVlr& v) { return v.record == 2112; });
   out.write("LASF", 4);
-  Put<std::uint16_t>(out, 0);                             // file source id
-  Put<std::uint16_t>(out, crs_wkt.empty() ? 0 : 0x10);    // global encoding: WKT
-  out.write(std::string(16, '\0').data(), 16);            // GUID
+  Put<std::uint16_t>(out, 0);                    // file source id
+  Put<std::uint16_t>(out, wkt ? 0x10 : 0);       // global encoding: WKT
+  out.write(std::string(16, '\0').data(), 16);   // GUID
   Put<std::uint8_t>(out, 1);
   Put<std::uint8_t>(out, 4);
   PutChars(out, "aerotri", 32);
@@ -119,34 +120,61 @@ LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, con
   Put<std::uint16_t>(out, static_cast<std::uint16_t>(tm.tm_year + 1900));
   Put<std::uint16_t>(out, 375);
   Put<std::uint32_t>(out, point_offset);
-  Put<std::uint32_t>(out, (crs_wkt.empty() ? 0 : 1) + (laz_ ? 1 : 0));
-  Put<std::uint8_t>(out, laz_ ? 0x87 : 7);  // bit 7: compressed (LASzip's mark)
+  Put<std::uint32_t>(out, static_cast<std::uint32_t>(h.vlrs.size()));
+  Put<std::uint8_t>(out, h.compressed ? 0x87 : 7);  // bit 7: compressed (LASzip's mark)
   Put<std::uint16_t>(out, 36);
   Put<std::uint32_t>(out, 0);  // legacy counts are 0 for formats 6-10
   for (int r = 0; r < 5; ++r) Put<std::uint32_t>(out, 0);
-  for (int k = 0; k < 3; ++k) Put<double>(out, kScale);
-  for (int k = 0; k < 3; ++k) Put<double>(out, offset_[k]);
+  for (int k = 0; k < 3; ++k) Put<double>(out, kLasScale);
+  for (int k = 0; k < 3; ++k) Put<double>(out, h.offset[k]);
   for (int k = 0; k < 3; ++k) {
-    Put<double>(out, hi[k]);
-    Put<double>(out, lo[k]);
+    Put<double>(out, h.hi[k]);
+    Put<double>(out, h.lo[k]);
   }
   Put<std::uint64_t>(out, 0);  // waveform
-  Put<std::uint64_t>(out, 0);  // first EVLR
-  Put<std::uint32_t>(out, 0);  // EVLR count
-  Put<std::uint64_t>(out, count);
-  Put<std::uint64_t>(out, count);  // all first returns
+  Put<std::uint64_t>(out, h.first_evlr);
+  Put<std::uint32_t>(out, h.evlrs);
+  Put<std::uint64_t>(out, h.count);
+  Put<std::uint64_t>(out, h.count);  // all first returns
   for (int r = 1; r < 15; ++r) Put<std::uint64_t>(out, 0);
-  if (laz_) {
-    PutVlrHeader(out, "laszip encoded", 22204, laszip.size(), "LAZ 1.4 layered chunked");
-    out.write(reinterpret_cast<const char*>(laszip.data()), static_cast<std::streamsize>(laszip.size()));
+  for (const LasVlr& v : h.vlrs) {
+    PutVlrHeader(out, v.user.c_str(), v.record, v.payload.size(), v.description.c_str());
+    out.write(reinterpret_cast<const char*>(v.payload.data()), static_cast<std::streamsize>(v.payload.size()));
   }
-  if (!crs_wkt.empty()) {
-    PutVlrHeader(out, "LASF_Projection", 2112, wkt.size(), "OGC WKT coordinate system");
-    out.write(wkt.data(), static_cast<std::streamsize>(wkt.size()));
+  return point_offset;
+}
+
+LasVlr WktVlr(const std::string& crs_wkt) {
+  const std::string wkt = crs_wkt + std::string(1, '\0');
+  return {"LASF_Projection", 2112, "OGC WKT coordinate system", std::vector<std::uint8_t>(wkt.begin(), wkt.end())};
+}
+
+LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, const Eigen::Vector3d& lo_in,
+                     const Eigen::Vector3d& hi_in, const std::string& crs_wkt)
+    : path_(path), tmp_(TemporaryPathFor(path)), count_(count) {
+  Eigen::Vector3d lo = lo_in, hi = hi_in;
+  if (count == 0) lo = hi = Eigen::Vector3d::Zero();
+  offset_ = LasOffsetFor(lo, hi);
+  lo_ = lo;
+  hi_ = hi;
+  buffer_.resize(1 << 20);
+  LasHeaderLayout layout;
+  layout.count = count;
+  layout.lo = lo;
+  layout.hi = hi;
+  layout.offset = offset_;
+  if (HasLazExtension(path)) {
+    laz_ = std::make_unique<laz::ChunkEncoder>(7);
+    threads_ = std::max(1u, std::thread::hardware_concurrency());
+    layout.compressed = true;
+    layout.vlrs.push_back({"laszip encoded", 22204, "LAZ 1.4 layered chunked", laz::LaszipVlrPayload(7, laz::kDefaultChunkSize)});
   }
+  if (!crs_wkt.empty()) layout.vlrs.push_back(WktVlr(crs_wkt));
+  OpenCloudFile(&out_, tmp_, path_);
+  const std::uint32_t point_offset = PutLasHeader(out_, layout);
   if (laz_) {
     chunk_table_pointer_ = point_offset;
-    Put<std::int64_t>(out, -1);  // the chunk table's offset, set by Commit
+    Put<std::int64_t>(out_, -1);  // the chunk table's offset, set by Commit
   }
 }
 
@@ -162,16 +190,8 @@ void LasWriter::Add(const Eigen::Vector3d& p, const std::array<std::uint8_t, 3>&
   if ((p - lo_).minCoeff() < -1e-6 || (hi_ - p).minCoeff() < -1e-6) {
     throw InvalidArgument(path_.string() + ": a point outside the bounds announced in the header");
   }
-  std::uint8_t record[36] = {};
-  const Eigen::Vector3d q = ((p - offset_) / kScale).array().round();
-  const std::int32_t xyz[3] = {static_cast<std::int32_t>(q.x()), static_cast<std::int32_t>(q.y()),
-                               static_cast<std::int32_t>(q.z())};
-  std::memcpy(record, xyz, 12);
-  record[14] = 0x11;  // return 1 of 1
-  record[16] = asprs_class;
-  const std::uint16_t rgb[3] = {static_cast<std::uint16_t>(c[0] * 257), static_cast<std::uint16_t>(c[1] * 257),
-                                static_cast<std::uint16_t>(c[2] * 257)};
-  std::memcpy(record + 30, rgb, 6);
+  std::uint8_t record[36];
+  MakeLasRecord(p, offset_, c, asprs_class, record);
   AddRecord(record);
 }
 
@@ -225,14 +245,14 @@ void LasWriter::Commit() {
     Put<std::int64_t>(out_, table_at);
     out_.seekp(0, std::ios::end);
   }
-  CloseAndCommit(&out_, tmp_, path_);
+  CommitCloudFile(&out_, tmp_, path_);
   committed_ = true;
 }
 
 PlyWriter::PlyWriter(const std::filesystem::path& path, std::uint64_t count, const std::string& crs_name)
     : path_(path), tmp_(TemporaryPathFor(path)), count_(count) {
   buffer_.resize(1 << 20);
-  OpenForWriting(&out_, tmp_, path_);
+  OpenCloudFile(&out_, tmp_, path_);
   out_ << "ply\nformat binary_little_endian 1.0\ncomment generated by aerotri\n";
   if (!crs_name.empty()) out_ << "comment crs " << crs_name << "\n";
   out_ << "element vertex " << count << "\n"
@@ -267,7 +287,7 @@ void PlyWriter::Commit() {
   }
   out_.write(buffer_.data(), static_cast<std::streamsize>(used_));
   used_ = 0;
-  CloseAndCommit(&out_, tmp_, path_);
+  CommitCloudFile(&out_, tmp_, path_);
   committed_ = true;
 }
 

@@ -39,6 +39,35 @@ struct CrsCloud {
 };
 
 void WriteLas(const CrsCloud& cloud, const std::filesystem::path& path);
+
+// The LAS 1.4 pieces aerotri's writers share (LasWriter, CopcWriter):
+// millimetre scale, offsets at whole kilometres below the cloud's minimum,
+// point format 7 records of returns 1 of 1.
+constexpr double kLasScale = 0.001;
+Eigen::Vector3d LasOffsetFor(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi);  // throws beyond 2,100 km
+void MakeLasRecord(const Eigen::Vector3d& p, const Eigen::Vector3d& offset, const std::array<std::uint8_t, 3>& rgb,
+                   std::uint8_t asprs_class, std::uint8_t* record36);
+struct LasVlr {
+  std::string user;
+  std::uint16_t record = 0;
+  std::string description;
+  std::vector<std::uint8_t> payload;
+};
+LasVlr WktVlr(const std::string& crs_wkt);  // LASF_Projection 2112, OGC WKT
+struct LasHeaderLayout {
+  std::uint64_t count = 0;
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero(), offset = Eigen::Vector3d::Zero();
+  bool compressed = false;
+  std::vector<LasVlr> vlrs;  // in file order
+  std::uint64_t first_evlr = 0;
+  std::uint32_t evlrs = 0;
+};
+// Opens `tmp` (creating path's folder), and closes it and renames it onto
+// path once written; a failed write removes it and throws IoError.
+void OpenCloudFile(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path);
+void CommitCloudFile(std::ofstream* out, const std::filesystem::path& tmp, const std::filesystem::path& path);
+// Writes the header and VLRs; returns the offset of the point data.
+std::uint32_t PutLasHeader(std::ostream& out, const LasHeaderLayout& layout);
 void WritePly(const CrsCloud& cloud, const std::filesystem::path& path);
 
 // The same files for a cloud written in batches (never all in memory): the
@@ -65,7 +94,6 @@ class LasWriter {
   void Flush();
   void WriteChunk();
   void WriteOldestChunk();
-  static constexpr double kScale = 0.001;
   std::filesystem::path path_, tmp_;
   std::unique_ptr<laz::ChunkEncoder> laz_;  // null: plain LAS
   std::vector<std::future<std::vector<std::uint8_t>>> pending_;  // chunks being compressed, in file order

@@ -3,12 +3,15 @@
 // (tests/las/check_laz.mjs: laz-perf must decode the LAZ to the LAS's bytes).
 //   laz_fixture OUT N lidar   records with every field in use (tests/las/laz_records.h)
 //   laz_fixture OUT N terrain aerotri's own records of a rendered terrain (N up to billions)
-// Writes OUT.las and OUT.laz.
+// Writes OUT.las and OUT.laz; with terrain, OUT.copc.laz too (the same
+// points as COPC, tests/las/check_copc.mjs).
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 
+#include "libphoto/export/copc.h"
 #include "libphoto/export/point_cloud.h"
 #include "tests/las/laz_records.h"
 
@@ -46,8 +49,14 @@ void WriteTerrain(const std::string& out, std::uint64_t n) {
   const std::uint64_t side = static_cast<std::uint64_t>(std::ceil(std::sqrt(static_cast<double>(n))));
   const Eigen::Vector3d lo(600000.0, 5000000.0, 80.0);
   const Eigen::Vector3d hi = lo + Eigen::Vector3d(0.05 * side, 0.05 * side, 60.0);
-  for (const char* ext : {".las", ".laz"}) {
-    aerotri::LasWriter writer(out + ext, n, lo, hi, "LOCAL_CS[\"laz fixture\"]");
+  for (const char* ext : {".las", ".laz", ".copc.laz"}) {
+    std::optional<aerotri::LasWriter> las;
+    std::optional<aerotri::CopcWriter> copc;
+    if (std::string(ext) == ".copc.laz") {
+      copc.emplace(out + ext, n, lo, hi, "LOCAL_CS[\"laz fixture\"]");
+    } else {
+      las.emplace(out + ext, n, lo, hi, "LOCAL_CS[\"laz fixture\"]");
+    }
     std::uint64_t written = 0;
     for (std::uint64_t ty = 0; ty < side && written < n; ty += 500) {
       for (std::uint64_t tx = 0; tx < side && written < n; tx += 500) {
@@ -56,13 +65,16 @@ void WriteTerrain(const std::string& out, std::uint64_t n) {
             const double e = 0.05 * x, northing = 0.05 * y;
             const double h = 30.0 + 10.0 * std::sin(e / 37.0) * std::cos(northing / 23.0) + 0.01 * ((x * 7 + y * 13) % 5);
             const auto shade = static_cast<std::uint8_t>(100 + 80 * std::sin(e / 3.0) * std::sin(northing / 5.0));
-            writer.Add(lo + Eigen::Vector3d(e, northing, h), {shade, static_cast<std::uint8_t>(shade / 2 + 60), 70},
-                       h < 28.0 ? 2 : 1);
+            const Eigen::Vector3d p = lo + Eigen::Vector3d(e, northing, h);
+            const std::array<std::uint8_t, 3> rgb = {shade, static_cast<std::uint8_t>(shade / 2 + 60), 70};
+            if (las) las->Add(p, rgb, h < 28.0 ? 2 : 1);
+            if (copc) copc->Add(p, rgb, h < 28.0 ? 2 : 1);
           }
         }
       }
     }
-    writer.Commit();
+    if (las) las->Commit();
+    if (copc) copc->Commit();
   }
 }
 
