@@ -1,9 +1,13 @@
 // SPDX-License-Identifier: BSD-3-Clause
-// LAZ against LAS on one cloud, side by side in one run: the cloud (a LAS or
-// LAZ file, e.g. a survey's cloud.las) is read once into memory, then written
-// as LAS and as LAZ in alternation (three rounds each), then each file is read
-// back. Prints sizes, times and their ratios.
-//   laz_bench CLOUD.las OUT_DIR
+// LAZ and COPC against LAS on one cloud, side by side in one run:
+// 1. the writers alone: the cloud (a LAS or LAZ file, e.g. a survey's cloud)
+//    is read once into memory, then written as LAS and as LAZ in alternation
+//    (best of three each), then each file is read back;
+// 2. the dense stage's cloud-products step as a survey runs it: the cloud in
+//    CRS tiles on disk, ground classes, DSM and DTM, and the cloud file as
+//    LAS, LAZ and COPC in turn (the PLY left out).
+// Prints sizes, times and their ratios.
+//   laz_bench CLOUD.las|.laz OUT_DIR
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -11,6 +15,7 @@
 #include <limits>
 #include <vector>
 
+#include "libphoto/export/cloud_tiles.h"
 #include "libphoto/export/point_cloud.h"
 
 namespace {
@@ -57,5 +62,30 @@ int main(int argc, char** argv) {
   std::printf("write   LAS %8.2f s    LAZ %8.2f s    LAZ/LAS %.2f (best of 3, alternating)\n", t_las, t_laz, t_laz / t_las);
   std::printf("read    LAS %8.2f s    LAZ %8.2f s    LAZ/LAS %.2f (%llu and %llu points)\n", r_las, r_laz, r_laz / r_las,
               static_cast<unsigned long long>(n_las), static_cast<unsigned long long>(n_laz));
+
+  // The products step, from CRS tiles on disk.
+  aerotri::CloudProductOptions products;
+  products.dsm.resolution_m = 0.1;
+  products.dsm.work_dir = dir;
+  products.threads = 2;
+  products.las_wkt = cloud.crs_wkt;
+  aerotri::TiledCloud tiles(dir / "tiles", 50.0, aerotri::CloudProductsHalo(products));
+  for (std::size_t at = 0; at < cloud.xyz.size(); at += 1000000) {
+    const std::size_t end = std::min(cloud.xyz.size(), at + 1000000);
+    tiles.Add({cloud.xyz.begin() + at, cloud.xyz.begin() + end}, {cloud.rgb.begin() + at, cloud.rgb.begin() + end});
+  }
+  tiles.Finish();
+  double step[3];
+  const char* names[3] = {"step.las", "step.laz", "step.copc.laz"};
+  for (int k = 0; k < 3; ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    aerotri::WriteCloudProducts(tiles, dir / names[k], {}, products);
+    step[k] = Seconds(t0);
+  }
+  std::printf("products step (tiles -> classes, DSM, DTM, cloud file; %zu tiles)\n", tiles.num_tiles());
+  for (int k = 0; k < 3; ++k) {
+    std::printf("  %-14s %8.2f s  %8.1f MB   time/LAS %.2f\n", names[k], step[k],
+                static_cast<double>(std::filesystem::file_size(dir / names[k])) / 1e6, step[k] / step[0]);
+  }
   return n_las == cloud.xyz.size() && n_laz == cloud.xyz.size() ? 0 : 1;
 }
