@@ -467,6 +467,13 @@ std::int32_t Mul(std::int32_t a, std::int32_t b) {  // two's complement, as the 
   return r;
 }
 bool FitsInt32(std::int64_t v) { return v == static_cast<std::int32_t>(v); }
+// Differences and sums of the times' bit patterns wrap, as the format's C does.
+std::int64_t Sub64(std::int64_t a, std::int64_t b) {
+  return static_cast<std::int64_t>(static_cast<std::uint64_t>(a) - static_cast<std::uint64_t>(b));
+}
+std::int64_t Add64(std::int64_t a, std::int64_t b) {
+  return static_cast<std::int64_t>(static_cast<std::uint64_t>(a) + static_cast<std::uint64_t>(b));
+}
 
 std::int32_t Quantize(float f) {
   f = std::clamp(f, -1e6f, 1e6f);  // only comparisons with small multipliers follow
@@ -498,13 +505,13 @@ struct GpsTimeState {
   // Another of the four sequences within 32 bits of t, or 0.
   std::uint32_t OtherSequence(std::int64_t t) const {
     for (std::uint32_t i = 1; i < 4; ++i) {
-      if (FitsInt32(t - last_time[(last + i) & 3])) return i;
+      if (FitsInt32(Sub64(t, last_time[(last + i) & 3]))) return i;
     }
     return 0;
   }
 
   void Write(Encoder& enc, std::int64_t t) {
-    const std::int64_t diff64 = t - last_time[last];
+    const std::int64_t diff64 = Sub64(t, last_time[last]);
     const bool fits = FitsInt32(diff64);
     const std::int32_t diff = static_cast<std::int32_t>(diff64);
     if (last_diff[last] == 0) {
@@ -577,7 +584,7 @@ struct GpsTimeState {
       const std::uint32_t sym = dec.DecodeSymbol(zero_diff);
       if (sym == 0) {
         last_diff[last] = ic.Decompress(dec, 0, 0);
-        last_time[last] += last_diff[last];
+        last_time[last] = Add64(last_time[last], last_diff[last]);
         extreme[last] = 0;
       } else if (sym == 1) {
         ReadNewSequence(dec);
@@ -590,7 +597,7 @@ struct GpsTimeState {
     const std::uint32_t sym = dec.DecodeSymbol(multi);
     const std::int32_t ld = last_diff[last];
     if (sym == 1) {
-      last_time[last] += ic.Decompress(dec, ld, 1);
+      last_time[last] = Add64(last_time[last], ic.Decompress(dec, ld, 1));
       extreme[last] = 0;
     } else if (sym < kGpsCodeFull) {
       std::int32_t diff;
@@ -612,7 +619,7 @@ struct GpsTimeState {
           CountExtreme(diff);
         }
       }
-      last_time[last] += diff;
+      last_time[last] = Add64(last_time[last], diff);
     } else if (sym == kGpsCodeFull) {
       ReadNewSequence(dec);
     } else {
