@@ -155,6 +155,8 @@ TEST(Copc, ReadsBackAsTheSamePointsEachOnceWithTheRecordsSpilledOnTheWay) {
   for (std::size_t i = 0; i < cloud.xyz.size(); ++i) writer.Add(cloud.xyz[i], cloud.rgb[i], cloud.classes[i]);
   EXPECT_FALSE(std::filesystem::exists(dir / "c.copc.laz"));  // not before Commit
   writer.Commit();
+  // A COPC name is CopcWriter's: LasWriter would write plain LAZ under it.
+  EXPECT_THROW(LasWriter(dir / "x.copc.laz", 1, lo, hi, ""), InvalidArgument);
   WriteLas(cloud, dir / "c.las");
   const CrsCloud las = ReadLas(dir / "c.las"), copc = ReadLas(dir / "c.copc.laz");
   EXPECT_EQ(copc.crs_wkt, las.crs_wkt);

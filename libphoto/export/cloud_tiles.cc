@@ -201,8 +201,7 @@ CloudProducts WriteCloudProducts(const TiledCloud& cloud, const std::filesystem:
   std::optional<LasWriter> las_writer;
   std::optional<CopcWriter> copc_writer;  // a path ending in .copc.laz
   std::optional<PlyWriter> ply_writer;
-  const std::string las_name = las.filename().string();
-  if (las_name.size() > 9 && las_name.compare(las_name.size() - 9, 9, ".copc.laz") == 0) {
+  if (IsCopcPath(las)) {
     copc_writer.emplace(las, cloud.count(), cloud.lo(), cloud.hi(), o.las_wkt);
   } else if (!las.empty()) {
     las_writer.emplace(las, cloud.count(), cloud.lo(), cloud.hi(), o.las_wkt);

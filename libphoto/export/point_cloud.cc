@@ -14,6 +14,7 @@
 
 #include "libphoto/base/atomic_file.h"
 #include "libphoto/base/error.h"
+#include "libphoto/export/copc.h"
 
 namespace aerotri {
 namespace {
@@ -157,6 +158,7 @@ LasWriter::LasWriter(const std::filesystem::path& path, std::uint64_t count, con
   offset_ = LasOffsetFor(lo, hi);
   lo_ = lo;
   hi_ = hi;
+  if (IsCopcPath(path)) throw InvalidArgument(path.string() + ": a COPC file is CopcWriter's to write (copc.h)");
   buffer_.resize(1 << 20);
   LasHeaderLayout layout;
   layout.count = count;
@@ -291,6 +293,11 @@ void PlyWriter::Commit() {
   committed_ = true;
 }
 
+bool IsCopcPath(const std::filesystem::path& path) {
+  const std::string name = path.filename().string();
+  return name.size() > 9 && name.compare(name.size() - 9, 9, ".copc.laz") == 0;
+}
+
 void WriteLas(const CrsCloud& cloud, const std::filesystem::path& path) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
   Eigen::Vector3d hi = -lo;
@@ -298,12 +305,20 @@ void WriteLas(const CrsCloud& cloud, const std::filesystem::path& path) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  LasWriter las(path, cloud.xyz.size(), lo, hi, cloud.crs_wkt);
-  for (size_t i = 0; i < cloud.xyz.size(); ++i) {
-    las.Add(cloud.xyz[i], i < cloud.rgb.size() ? cloud.rgb[i] : std::array<std::uint8_t, 3>{0, 0, 0},
-            i < cloud.classes.size() ? cloud.classes[i] : 1);  // 1: unclassified
+  auto write = [&](auto& writer) {
+    for (size_t i = 0; i < cloud.xyz.size(); ++i) {
+      writer.Add(cloud.xyz[i], i < cloud.rgb.size() ? cloud.rgb[i] : std::array<std::uint8_t, 3>{0, 0, 0},
+                 i < cloud.classes.size() ? cloud.classes[i] : 1);  // 1: unclassified
+    }
+    writer.Commit();
+  };
+  if (IsCopcPath(path)) {
+    CopcWriter copc(path, cloud.xyz.size(), lo, hi, cloud.crs_wkt);
+    write(copc);
+  } else {
+    LasWriter las(path, cloud.xyz.size(), lo, hi, cloud.crs_wkt);
+    write(las);
   }
-  las.Commit();
 }
 
 void WritePly(const CrsCloud& cloud, const std::filesystem::path& path) {

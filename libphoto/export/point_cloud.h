@@ -38,7 +38,9 @@ struct CrsCloud {
   std::string crs_name;  // for humans (PLY comment)
 };
 
+// The file's name decides: .las, .laz (LasWriter), .copc.laz (CopcWriter).
 void WriteLas(const CrsCloud& cloud, const std::filesystem::path& path);
+bool IsCopcPath(const std::filesystem::path& path);  // a name ending in .copc.laz
 
 // The LAS 1.4 pieces aerotri's writers share (LasWriter, CopcWriter):
 // millimetre scale, offsets at whole kilometres below the cloud's minimum,
