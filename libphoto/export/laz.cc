@@ -676,15 +676,16 @@ std::int32_t Clamp8(std::int32_t v) { return std::clamp(v, 0, 255); }
 // Encoding
 // ---------------------------------------------------------------------------
 
-struct ChunkEncoder::State {
-  explicit State(const Point14& first, const std::uint8_t* rgb) : models(first) {
+namespace {
+
+// The coders and models of one chunk being compressed.
+struct EncoderState {
+  explicit EncoderState(const Point14& first, const std::uint8_t* rgb) : models(first) {
     if (rgb) std::memcpy(models.last_rgb.data(), rgb, 6);
   }
   Models models;
   std::array<Encoder, kLayers> enc;
 };
-
-namespace {
 
 void EncodeReturnsAndXY(Models& m, Encoder& enc, const Point14& p, bool gps_change) {
   const Point14& l = m.last;
@@ -773,13 +774,6 @@ ChunkEncoder ChunkEncoder::Release() {
   return out;
 }
 
-std::vector<std::uint8_t> ChunkEncoder::Finish() {
-  std::vector<std::uint8_t> out = CompressChunk(format_, records_.data(), points_);
-  records_.clear();
-  points_ = 0;
-  return out;
-}
-
 namespace {
 
 // The layers whose field changes somewhere in the chunk: the others are
@@ -803,7 +797,7 @@ std::array<bool, kLayers> ChangedLayers(int format, const std::uint8_t* records,
   return changed;
 }
 
-void EncodePoint(ChunkEncoder::State& s, const std::uint8_t* record, bool rgb, const std::array<bool, kLayers>& on);
+void EncodePoint(EncoderState& s, const std::uint8_t* record, bool rgb, const std::array<bool, kLayers>& on);
 
 }  // namespace
 
@@ -814,7 +808,7 @@ std::vector<std::uint8_t> CompressChunk(int point_format, const std::uint8_t* re
   const int layers = point_format == 7 ? kLayers : kLayers - 1;
   const std::array<bool, kLayers> on = ChangedLayers(point_format, records, n);
   out.assign(records, records + size);  // the first point, raw
-  ChunkEncoder::State s(Unpack(records), point_format == 7 ? records + 30 : nullptr);
+  EncoderState s(Unpack(records), point_format == 7 ? records + 30 : nullptr);
   for (std::uint32_t i = 1; i < n; ++i) EncodePoint(s, records + i * size, point_format == 7, on);
   std::array<std::uint32_t, kLayers> sizes{};
   for (int i = 0; i < layers; ++i) {
@@ -833,7 +827,7 @@ std::vector<std::uint8_t> CompressChunk(int point_format, const std::uint8_t* re
 
 namespace {
 
-void EncodePoint(ChunkEncoder::State& s, const std::uint8_t* record, bool rgb, const std::array<bool, kLayers>& on) {
+void EncodePoint(EncoderState& s, const std::uint8_t* record, bool rgb, const std::array<bool, kLayers>& on) {
   const Point14 p = Unpack(record);
   if (p.channel != 0) throw InvalidArgument("LAZ: scanner channel " + std::to_string(p.channel) + " (0 expected)");
   Models& m = s.models;

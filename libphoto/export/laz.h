@@ -53,18 +53,16 @@ struct Chunk {
 // layout): the first point raw, the count, the layer sizes, the layers.
 std::vector<std::uint8_t> CompressChunk(int point_format, const std::uint8_t* records, std::uint32_t n);
 
-// Collects the records of one chunk; Finish() compresses them and starts the
-// next chunk.
+// Collects the records of one chunk, to be compressed where the caller
+// likes (Release, then Compress on a thread of its own).
 class ChunkEncoder {
  public:
-  struct State;  // the coders and models of one chunk (laz.cc)
   explicit ChunkEncoder(int point_format);
   ~ChunkEncoder();
   ChunkEncoder(const ChunkEncoder&) = delete;
   ChunkEncoder& operator=(const ChunkEncoder&) = delete;
   void Add(const std::uint8_t* record);  // 30 or 36 bytes, LAS 1.4 layout
   std::uint32_t points() const { return points_; }
-  std::vector<std::uint8_t> Finish();
   // The collected records as a chunk of their own (to compress elsewhere);
   // this one starts empty.
   ChunkEncoder Release();
