@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
@@ -73,6 +74,75 @@ TEST(ImageMetadata, GimbalXmpRoundTripsBesideTheExif) {
   EXPECT_FALSE(ReadImageMetadata(dir / "plain.jpg").gimbal_pitch_deg.has_value());
   EXPECT_THROW(WriteJpegWithExif(dir / "big.jpg", image, {}, 90, std::string(70000, 'x')), InvalidArgument);
   EXPECT_FALSE(std::filesystem::exists(dir / "big.jpg"));
+}
+
+// Parrot Sequoia (the hard set's first photo, ../shared/data/hard_garfield):
+// Pix4D's camera XMP tags as the camera wrote them, read as exiftool shows
+// them, and its GPS accuracies become the photo's GPS sigmas.
+TEST(ImageMetadata, ParrotSequoiaSaysItsAttitudeAccuracyReadoutAndCalibration) {
+  const std::filesystem::path set = testing::SharedData("hard_garfield");
+  if (set.empty()) GTEST_SKIP() << "../shared/data/hard_garfield is absent";
+  const ImageMetadata m = ReadImageMetadata(set / "images" / "IMG_161122_163234_0000_RGB.JPG");
+  ASSERT_EQ(m.xmp_sources, std::vector<std::string>{"Pix4D camera tags (Camera namespace)"});
+  ASSERT_TRUE(m.camera_yaw_deg && m.camera_pitch_deg && m.camera_roll_deg);
+  EXPECT_DOUBLE_EQ(*m.camera_yaw_deg, -16.7996);
+  EXPECT_DOUBLE_EQ(*m.camera_pitch_deg, 5.1846);
+  EXPECT_DOUBLE_EQ(*m.camera_roll_deg, 0.0154285);
+  ASSERT_TRUE(m.gps_xy_accuracy_m && m.gps_z_accuracy_m && m.line_readout_time_s && m.perspective_focal_mm);
+  EXPECT_DOUBLE_EQ(*m.gps_xy_accuracy_m, 2.301);
+  EXPECT_DOUBLE_EQ(*m.gps_z_accuracy_m, 3.419);
+  EXPECT_DOUBLE_EQ(*m.line_readout_time_s, 0.0475);  // 47500 us
+  EXPECT_EQ(m.imu_linear_velocity_mps, (std::vector<double>{2.09, 12.59, 0.61}));
+  EXPECT_DOUBLE_EQ(*m.perspective_focal_mm, 4.812073);
+  EXPECT_EQ(m.principal_point_mm, (std::vector<double>{3.042001, 2.280612}));
+  EXPECT_EQ(m.perspective_distortion,
+            (std::vector<double>{0.178441961, -0.4745818, 0.402026402, -0.000900784, -0.000653429}));
+  EXPECT_FALSE(m.gimbal_pitch_deg.has_value());  // no DJI tags
+  const auto sigmas = GpsSigmasStatedBy(m);
+  ASSERT_TRUE(sigmas.has_value());
+  EXPECT_DOUBLE_EQ(sigmas->h_m, 2.301);
+  EXPECT_DOUBLE_EQ(sigmas->v_m, 3.419);
+  EXPECT_EQ(sigmas->source, "exif+accuracy");
+}
+
+// DJI's further drone-dji tags (as DJI's Mavic 3M image processing guide and
+// ExifTool's DJI table name them), in a faithfully constructed packet: the
+// aircraft's attitude and speeds, the factory calibration, RTK deviations
+// (which win over any accuracy tag: they are the RTK solution's own).
+TEST(ImageMetadata, DjiSaysItsFlightAttitudeSpeedsCalibrationAndRtkDeviations) {
+  testing::TempDir dir;
+  const std::string xmp =
+      "<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"><rdf:RDF xmlns:rdf=\"http://www.w3.org/1999/02/22-rdf-syntax-ns#\">"
+      "<rdf:Description rdf:about=\"\" xmlns:drone-dji=\"http://www.dji.com/drone-dji/1.0/\" "
+      "drone-dji:GimbalPitchDegree=\"-90.00\" drone-dji:GimbalYawDegree=\"+12.50\" drone-dji:GimbalRollDegree=\"+0.00\" "
+      "drone-dji:FlightPitchDegree=\"-3.20\" drone-dji:FlightRollDegree=\"+1.10\" drone-dji:FlightYawDegree=\"+12.90\" "
+      "drone-dji:FlightXSpeed=\"+9.8\" drone-dji:FlightYSpeed=\"-0.3\" drone-dji:FlightZSpeed=\"+0.1\" "
+      "drone-dji:RtkFlag=\"50\" drone-dji:RtkStdLon=\"0.01163\" drone-dji:RtkStdLat=\"0.01041\" drone-dji:RtkStdHgt=\"0.02232\" "
+      "drone-dji:CalibratedFocalLength=\"3666.666504\" drone-dji:CalibratedOpticalCenterX=\"2736.000000\" "
+      "drone-dji:CalibratedOpticalCenterY=\"1824.000000\"/></rdf:RDF></x:xmpmeta>";
+  cv::Mat image(48, 64, CV_8UC3, cv::Scalar(40, 120, 200));
+  WriteJpegWithExif(dir / "d.jpg", image, {{"EXIF_Make", "DJI"}}, 90, xmp);
+  const ImageMetadata m = ReadImageMetadata(dir / "d.jpg");
+  EXPECT_EQ(m.xmp_sources, std::vector<std::string>{"DJI (drone-dji)"});
+  ASSERT_TRUE(m.flight_pitch_deg && m.flight_roll_deg && m.flight_yaw_deg);
+  EXPECT_DOUBLE_EQ(*m.flight_pitch_deg, -3.2);
+  EXPECT_DOUBLE_EQ(*m.flight_roll_deg, 1.1);
+  EXPECT_DOUBLE_EQ(*m.flight_yaw_deg, 12.9);
+  ASSERT_TRUE(m.flight_speed_x_mps && m.flight_speed_y_mps && m.flight_speed_z_mps);
+  EXPECT_DOUBLE_EQ(*m.flight_speed_x_mps, 9.8);
+  EXPECT_DOUBLE_EQ(*m.flight_speed_y_mps, -0.3);
+  ASSERT_TRUE(m.calibrated_focal_px && m.calibrated_cx_px && m.calibrated_cy_px);
+  EXPECT_DOUBLE_EQ(*m.calibrated_focal_px, 3666.666504);
+  EXPECT_DOUBLE_EQ(*m.calibrated_cy_px, 1824.0);
+  const auto sigmas = GpsSigmasStatedBy(m);
+  ASSERT_TRUE(sigmas.has_value());
+  EXPECT_NEAR(sigmas->h_m, std::hypot(0.01041, 0.01163) / std::sqrt(2.0), 1e-12);
+  EXPECT_DOUBLE_EQ(sigmas->v_m, 0.02232);
+  EXPECT_EQ(sigmas->source, "exif+rtk");
+  // A malformed number is no number, not a guess.
+  WriteJpegWithExif(dir / "bad.jpg", image, {{"EXIF_Make", "DJI"}}, 90,
+                    "<x:xmpmeta xmlns:drone-dji=\"http://www.dji.com/drone-dji/1.0/\" drone-dji:FlightXSpeed=\"9.8m\"/>");
+  EXPECT_FALSE(ReadImageMetadata(dir / "bad.jpg").flight_speed_x_mps.has_value());
 }
 
 // Found by tests/fuzz/fuzz_exif.cc: an EXIF_PixelXDimension of 1e12 was

@@ -63,11 +63,10 @@ std::map<std::string, GpsFix> GpsFromImages(const std::vector<std::string>& imag
     fix.sigma_h_m = sigma_h_m;
     fix.sigma_v_m = sigma_v_m;
     fix.source = "exif";
-    if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_lat_m > 0 &&
-        *m.rtk_std_lon_m > 0 && *m.rtk_std_hgt_m > 0) {
-      fix.sigma_h_m = std::hypot(*m.rtk_std_lat_m, *m.rtk_std_lon_m) / std::sqrt(2.0);
-      fix.sigma_v_m = *m.rtk_std_hgt_m;
-      fix.source = "exif+rtk";
+    if (const auto stated = GpsSigmasStatedBy(m)) {
+      fix.sigma_h_m = stated->h_m;
+      fix.sigma_v_m = stated->v_m;
+      fix.source = stated->source;
     }
     fixes[name] = fix;
   }

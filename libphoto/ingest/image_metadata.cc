@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <memory>
 #include <mutex>
-#include <regex>
 #include <sstream>
 
 #include "libphoto/base/error.h"
@@ -54,19 +53,79 @@ std::optional<double> Dms(const char* value, const char* ref, char negative) {
   return deg;
 }
 
-std::optional<double> XmpNumber(const std::string& xmp, const std::string& tag) {
-  // Attribute form drone-dji:Tag="+1.23" or element form <drone-dji:Tag>1.23<
-  const std::regex attr(tag + "=\"([-+0-9.eE]+)\"");
-  const std::regex elem("<" + tag + ">([-+0-9.eE]+)<");
-  std::smatch m;
-  if (std::regex_search(xmp, m, attr) || std::regex_search(xmp, m, elem)) {
-    try {
-      return std::stod(m[1].str());
-    } catch (...) {
-      return std::nullopt;
-    }
+// The text of an XMP property in attribute form (ns:Tag="...") or element
+// form (<ns:Tag>...<); nullopt when absent.
+std::optional<std::string> XmpText(const std::string& xmp, const std::string& tag) {
+  for (const auto& [open, close] : {std::pair<std::string, char>{tag + "=\"", '"'}, {"<" + tag + ">", '<'}}) {
+    const size_t at = xmp.find(open);
+    if (at == std::string::npos) continue;
+    const size_t from = at + open.size(), to = xmp.find(close, from);
+    if (to == std::string::npos) return std::nullopt;
+    return xmp.substr(from, to - from);
   }
   return std::nullopt;
+}
+
+// Comma-separated numbers ("2.09,12.59,0.61"); empty unless every one parses.
+std::vector<double> XmpNumbers(const std::string& xmp, const std::string& tag) {
+  std::vector<double> out;
+  const std::optional<std::string> text = XmpText(xmp, tag);
+  if (!text) return out;
+  std::stringstream in(*text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (end == item.c_str() || !std::isfinite(v)) return {};
+    while (*end == ' ') ++end;
+    if (*end != '\0') return {};
+    out.push_back(v);
+  }
+  return out;
+}
+
+std::optional<double> XmpNumber(const std::string& xmp, const std::string& tag) {
+  const std::vector<double> v = XmpNumbers(xmp, tag);
+  if (v.size() != 1) return std::nullopt;
+  return v[0];
+}
+
+void ReadDjiXmp(const std::string& text, ImageMetadata* m) {
+  m->relative_altitude_m = XmpNumber(text, "drone-dji:RelativeAltitude");
+  m->gimbal_pitch_deg = XmpNumber(text, "drone-dji:GimbalPitchDegree");
+  m->gimbal_yaw_deg = XmpNumber(text, "drone-dji:GimbalYawDegree");
+  m->gimbal_roll_deg = XmpNumber(text, "drone-dji:GimbalRollDegree");
+  m->rtk_std_lat_m = XmpNumber(text, "drone-dji:RtkStdLat");
+  m->rtk_std_lon_m = XmpNumber(text, "drone-dji:RtkStdLon");
+  m->rtk_std_hgt_m = XmpNumber(text, "drone-dji:RtkStdHgt");
+  m->flight_pitch_deg = XmpNumber(text, "drone-dji:FlightPitchDegree");
+  m->flight_roll_deg = XmpNumber(text, "drone-dji:FlightRollDegree");
+  m->flight_yaw_deg = XmpNumber(text, "drone-dji:FlightYawDegree");
+  m->flight_speed_x_mps = XmpNumber(text, "drone-dji:FlightXSpeed");
+  m->flight_speed_y_mps = XmpNumber(text, "drone-dji:FlightYSpeed");
+  m->flight_speed_z_mps = XmpNumber(text, "drone-dji:FlightZSpeed");
+  m->calibrated_focal_px = XmpNumber(text, "drone-dji:CalibratedFocalLength");
+  m->calibrated_cx_px = XmpNumber(text, "drone-dji:CalibratedOpticalCenterX");
+  m->calibrated_cy_px = XmpNumber(text, "drone-dji:CalibratedOpticalCenterY");
+  if (text.find("drone-dji:") != std::string::npos) m->xmp_sources.push_back("DJI (drone-dji)");
+}
+
+void ReadPix4dCameraXmp(const std::string& text, ImageMetadata* m) {
+  if (text.find("http://pix4d.com/camera/1.0/") == std::string::npos) return;
+  m->camera_yaw_deg = XmpNumber(text, "Camera:Yaw");
+  m->camera_pitch_deg = XmpNumber(text, "Camera:Pitch");
+  m->camera_roll_deg = XmpNumber(text, "Camera:Roll");
+  m->gps_xy_accuracy_m = XmpNumber(text, "Camera:GPSXYAccuracy");
+  m->gps_z_accuracy_m = XmpNumber(text, "Camera:GPSZAccuracy");
+  if (const auto t = XmpNumber(text, "Camera:LineReadoutTime"); t && *t > 0) m->line_readout_time_s = *t * 1e-6;
+  m->imu_linear_velocity_mps = XmpNumbers(text, "Camera:IMULinearVelocity");
+  if (m->imu_linear_velocity_mps.size() != 3) m->imu_linear_velocity_mps.clear();
+  m->perspective_focal_mm = XmpNumber(text, "Camera:PerspectiveFocalLength");
+  m->principal_point_mm = XmpNumbers(text, "Camera:PrincipalPoint");
+  if (m->principal_point_mm.size() != 2) m->principal_point_mm.clear();
+  m->perspective_distortion = XmpNumbers(text, "Camera:PerspectiveDistortion");
+  if (m->perspective_distortion.size() != 5) m->perspective_distortion.clear();
+  m->xmp_sources.push_back("Pix4D camera tags (Camera namespace)");
 }
 
 std::string Text(const char* v) { return v ? std::string(v) : std::string(); }
@@ -159,15 +218,24 @@ ImageMetadata ReadImageMetadata(const std::filesystem::path& path) {
   }
   if (char** xmp = ds->GetMetadata("xml:XMP"); xmp && xmp[0]) {
     const std::string text(xmp[0]);
-    m.relative_altitude_m = XmpNumber(text, "drone-dji:RelativeAltitude");
-    m.gimbal_pitch_deg = XmpNumber(text, "drone-dji:GimbalPitchDegree");
-    m.gimbal_yaw_deg = XmpNumber(text, "drone-dji:GimbalYawDegree");
-    m.gimbal_roll_deg = XmpNumber(text, "drone-dji:GimbalRollDegree");
-    m.rtk_std_lat_m = XmpNumber(text, "drone-dji:RtkStdLat");
-    m.rtk_std_lon_m = XmpNumber(text, "drone-dji:RtkStdLon");
-    m.rtk_std_hgt_m = XmpNumber(text, "drone-dji:RtkStdHgt");
+    ReadDjiXmp(text, &m);
+    ReadPix4dCameraXmp(text, &m);
   }
   return m;
+}
+
+std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m) {
+  constexpr double kFloor = 0.005;
+  if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_lat_m > 0 && *m.rtk_std_lon_m > 0 &&
+      *m.rtk_std_hgt_m > 0) {
+    return StatedGpsSigmas{std::max(kFloor, std::hypot(*m.rtk_std_lat_m, *m.rtk_std_lon_m) / std::sqrt(2.0)),
+                           std::max(kFloor, *m.rtk_std_hgt_m), "exif+rtk"};
+  }
+  if (m.gps_xy_accuracy_m && m.gps_z_accuracy_m && *m.gps_xy_accuracy_m > 0 && *m.gps_z_accuracy_m > 0) {
+    return StatedGpsSigmas{std::max(kFloor, *m.gps_xy_accuracy_m), std::max(kFloor, *m.gps_z_accuracy_m),
+                           "exif+accuracy"};
+  }
+  return std::nullopt;
 }
 
 }  // namespace aerotri

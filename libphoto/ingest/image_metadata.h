@@ -3,13 +3,23 @@
 
 // What an image file tells about its capture, read through GDAL's JPEG (and
 // TIFF) drivers: EXIF (GPS, focal length, make / model, sizes) and, where
-// present, DJI XMP tags (relative altitude, gimbal angles, RTK standard
-// deviations). Nothing is invented: a missing tag stays std::nullopt and the
-// caller says what it assumed instead.
+// present, what the camera says about itself in XMP:
+//  - DJI (drone-dji namespace, as DJI's image processing guides and
+//    ExifTool's DJI table name the tags): relative altitude, gimbal and
+//    flight attitudes, flight speeds, RTK standard deviations, the factory
+//    calibration (CalibratedFocalLength, CalibratedOpticalCenterX/Y, px);
+//  - Parrot Sequoia / Anafi and other writers of Pix4D's camera XMP tags
+//    (namespace http://pix4d.com/camera/1.0/, prefix Camera; Pix4D's
+//    "Camera XMP tags" specification): the camera's attitude from its IMU,
+//    GPS accuracies, the IMU's linear velocity, the rolling shutter's
+//    readout time, the factory calibration.
+// Nothing is invented: a missing tag stays std::nullopt and the caller says
+// what it assumed instead.
 
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace aerotri {
 
@@ -48,9 +58,34 @@ struct ImageMetadata {
   std::optional<double> rtk_std_lat_m;
   std::optional<double> rtk_std_lon_m;
   std::optional<double> rtk_std_hgt_m;
+  std::optional<double> flight_pitch_deg, flight_roll_deg, flight_yaw_deg;  // the aircraft's attitude
+  std::optional<double> flight_speed_x_mps, flight_speed_y_mps, flight_speed_z_mps;
+  std::optional<double> calibrated_focal_px, calibrated_cx_px, calibrated_cy_px;
+
+  // Pix4D camera XMP (Parrot). Attitude of the camera in degrees: yaw
+  // clockwise from north, pitch and roll 0 for a camera looking straight
+  // down.
+  std::optional<double> camera_yaw_deg, camera_pitch_deg, camera_roll_deg;
+  std::optional<double> gps_xy_accuracy_m, gps_z_accuracy_m;  // the receiver's stated accuracy
+  std::optional<double> line_readout_time_s;  // LineReadoutTime (written in microseconds)
+  std::vector<double> imu_linear_velocity_mps;  // IMULinearVelocity: 3 values, m/s
+  std::optional<double> perspective_focal_mm;  // PerspectiveFocalLength
+  std::vector<double> principal_point_mm;      // PrincipalPoint: x, y
+  std::vector<double> perspective_distortion;  // PerspectiveDistortion: k1, k2, k3, p1, p2
 
   bool HasGps() const { return lat_deg && lon_deg; }
+  // Vendors whose XMP the photo carries ("DJI", "Parrot / Pix4D camera tags"); empty: none read.
+  std::vector<std::string> xmp_sources;
 };
+
+// The GPS sigmas the photo states (DJI RTK standard deviations, else the
+// Pix4D camera tags' GPS accuracies), floored at 5 mm, with their source
+// ("exif+rtk", "exif+accuracy"); nullopt when it states none.
+struct StatedGpsSigmas {
+  double h_m = 0, v_m = 0;
+  std::string source;
+};
+std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m);
 
 // Throws IoError naming the path when GDAL cannot open the file as an image
 // (missing, corrupt, not an image).

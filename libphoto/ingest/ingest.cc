@@ -37,6 +37,39 @@ void IngestOptions::Check() const {
 namespace {
 
 // The GPS fix of one photo: the CSV's row, else EXIF (RTK sigmas when tagged).
+// The XMP a photo carries about its camera, tag by tag, the vendors named.
+json CameraSays(const ImageMetadata& m) {
+  json j = json::object();
+  if (m.xmp_sources.empty()) return j;
+  j["sources"] = m.xmp_sources;
+  auto put = [&](const char* key, const std::optional<double>& v) {
+    if (v) j[key] = *v;
+  };
+  put("flight_pitch_deg", m.flight_pitch_deg);
+  put("flight_roll_deg", m.flight_roll_deg);
+  put("flight_yaw_deg", m.flight_yaw_deg);
+  if (m.flight_speed_x_mps && m.flight_speed_y_mps && m.flight_speed_z_mps) {
+    j["flight_speed_mps"] = {*m.flight_speed_x_mps, *m.flight_speed_y_mps, *m.flight_speed_z_mps};
+  }
+  put("calibrated_focal_px", m.calibrated_focal_px);
+  put("calibrated_cx_px", m.calibrated_cx_px);
+  put("calibrated_cy_px", m.calibrated_cy_px);
+  put("rtk_std_lat_m", m.rtk_std_lat_m);
+  put("rtk_std_lon_m", m.rtk_std_lon_m);
+  put("rtk_std_hgt_m", m.rtk_std_hgt_m);
+  put("camera_yaw_deg", m.camera_yaw_deg);
+  put("camera_pitch_deg", m.camera_pitch_deg);
+  put("camera_roll_deg", m.camera_roll_deg);
+  put("gps_xy_accuracy_m", m.gps_xy_accuracy_m);
+  put("gps_z_accuracy_m", m.gps_z_accuracy_m);
+  put("line_readout_time_s", m.line_readout_time_s);
+  if (!m.imu_linear_velocity_mps.empty()) j["imu_linear_velocity_mps"] = m.imu_linear_velocity_mps;
+  put("perspective_focal_mm", m.perspective_focal_mm);
+  if (!m.principal_point_mm.empty()) j["principal_point_mm"] = m.principal_point_mm;
+  if (!m.perspective_distortion.empty()) j["perspective_distortion"] = m.perspective_distortion;
+  return j;
+}
+
 std::optional<GpsFix> FixOf(const std::string& name, const ImageMetadata& m,
                             const std::map<std::string, GpsFix>& csv, const IngestOptions& o) {
   if (const auto it = csv.find(name); it != csv.end()) {
@@ -51,10 +84,10 @@ std::optional<GpsFix> FixOf(const std::string& name, const ImageMetadata& m,
   f.sigma_v_m = o.gps_sigma_v_m;
   f.source = "exif";
   if (m.capture_time_s) f.time_s = *m.capture_time_s;
-  if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_hgt_m > 0) {
-    f.sigma_h_m = std::max(0.005, std::hypot(*m.rtk_std_lat_m, *m.rtk_std_lon_m) / std::sqrt(2.0));
-    f.sigma_v_m = std::max(0.005, *m.rtk_std_hgt_m);
-    f.source = "exif+rtk";
+  if (const auto stated = GpsSigmasStatedBy(m)) {
+    f.sigma_h_m = stated->h_m;
+    f.sigma_v_m = stated->v_m;
+    f.source = stated->source;
   }
   return f;
 }
@@ -213,6 +246,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
     im.gimbal_pitch_deg = m.gimbal_pitch_deg;
     im.gimbal_yaw_deg = m.gimbal_yaw_deg;
     im.capture_time_s = m.capture_time_s;
+    im.camera_says = CameraSays(m);
     im.gps = FixOf(im.name, m, csv, o);
     if (im.gps) {
       ++r.images_with_gps;
@@ -277,6 +311,7 @@ json ToJson(const IngestRecord& r) {
     if (i.gimbal_pitch_deg) im["gimbal_pitch_deg"] = *i.gimbal_pitch_deg;
     if (i.gimbal_yaw_deg) im["gimbal_yaw_deg"] = *i.gimbal_yaw_deg;
     if (i.capture_time_s) im["capture_time_s"] = *i.capture_time_s;
+    if (!i.camera_says.empty()) im["camera_says"] = i.camera_says;
     if (i.gps) {
       im["gps"] = {{"lat_deg", i.gps->position.lat_deg}, {"lon_deg", i.gps->position.lon_deg},
                    {"h_m", i.gps->position.h_m},         {"sigma_h_m", i.gps->sigma_h_m},
@@ -311,6 +346,14 @@ json ToJson(const IngestRecord& r) {
   doc["groups"] = groups;
   doc["warnings"] = r.warnings;
   doc["images_with_gps"] = r.images_with_gps;
+  // Which vendors' XMP the photos carry, and in how many.
+  json camera_metadata = json::object();
+  for (const IngestedImage& i : r.images) {
+    for (const json& source : i.camera_says.value("sources", json::array())) {
+      camera_metadata[source.get<std::string>()] = camera_metadata.value(source.get<std::string>(), 0) + 1;
+    }
+  }
+  doc["camera_metadata"] = camera_metadata;
   return doc;
 }
 
@@ -369,6 +412,7 @@ IngestRecord IngestRecordFromJson(const json& doc, const std::string& path) {
       im.gimbal_pitch_deg = opt("gimbal_pitch_deg");
       im.gimbal_yaw_deg = opt("gimbal_yaw_deg");
       im.capture_time_s = opt("capture_time_s");
+      im.camera_says = j.value("camera_says", json::object());
       if (j.contains("gps") && !j.at("gps").is_null()) {
         const json& g = j.at("gps");
         GpsFix f;

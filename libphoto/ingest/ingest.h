@@ -9,8 +9,10 @@
 // Policies decided here, once:
 //  - GPS source: a CSV row overrides EXIF; EXIF GPS at (0, 0) is no fix;
 //    EXIF altitudes are read in options.gps_altitude.
-//  - RTK: DJI's XMP standard deviations replace the default sigmas when
-//    present (sigma_h = hypot(lat, lon) / sqrt 2, floored at 5 mm).
+//  - Stated GPS sigmas replace the default ones where a photo states them
+//    (GpsSigmasStatedBy): DJI's RTK standard deviations (sigma_h =
+//    hypot(lat, lon) / sqrt 2), else the GPS accuracies of Pix4D's camera
+//    tags (Parrot); floored at 5 mm.
 //  - Camera groups: one physical camera (make, model, focal mm) and one
 //    working image size. A photo that says nothing of its camera joins the
 //    group of its size when there is exactly one, with a warning.
@@ -51,6 +53,9 @@ struct IngestedImage {
   std::optional<double> capture_time_s;  // EXIF DateTimeOriginal (ExifDateTimeSeconds)
   std::optional<GpsFix> gps;
   int group = -1;
+  // What the camera says about itself beyond position and gimbal (XMP),
+  // tag by tag with the vendor named (image_metadata.h); for ingest.json.
+  nlohmann::json camera_says = nlohmann::json::object();
 };
 
 struct CameraGroup {

@@ -489,6 +489,8 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["camera_groups"] = ingest_doc.at("groups");
   AddIntrinsicsInMmOf(o, ingest, &report);
   report["ingest_warnings"] = ingest_doc.at("warnings");
+  // What the photos say about their cameras, by vendor (ingest.json has it per photo).
+  report["camera_metadata"] = ingest_doc.value("camera_metadata", json::object());
 
   SetSurveyStatus(recon, ingest, registered, &report);
 
