@@ -25,7 +25,7 @@ echo "with the limit: exit $code; $error"
 [ "$code" = 1 ] || fail "exit code $code, expected 1"
 echo "$error" | grep -Eq "error: $work/ws/depth/[^ ]+: write failed: File too large" ||
   fail "the error does not name the file and the failure: $error"
-for f in cloud.las cloud.ply dsm.tif dtm.tif ortho.tif dense.json; do
+for f in cloud.laz cloud.ply dsm.tif dtm.tif ortho.tif dense.json; do
   [ ! -e "$work/ws/$f" ] || fail "$f exists after the failed dense stage"
 done
 [ -f "$work/ws/report.json" ] || fail "the georeference stage's report.json is missing"
@@ -36,7 +36,7 @@ left=$(find "$work/ws" -name '*.tmp.*' -o -name '_*_work.tif')
 "$exe" run "${args[@]}" >"$work/resumed.out" 2>"$work/resumed.log" || fail "the rerun failed: $(tail -3 "$work/resumed.log")"
 grep -q 'status=ok' "$work/resumed.out" || fail "the rerun's status: $(cat "$work/resumed.out")"
 grep -q '^georeference: done already' "$work/resumed.log" || fail "the rerun redid the georeference stage"
-for f in cloud.las dsm.tif dtm.tif contours.gpkg ortho.tif report.html; do
+for f in cloud.laz dsm.tif dtm.tif contours.gpkg ortho.tif report.html; do
   [ -s "$work/ws/$f" ] || fail "$f missing after the rerun"
 done
 cat "$work/resumed.out"

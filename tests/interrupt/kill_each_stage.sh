@@ -73,13 +73,13 @@ gdal_translate -q -of XYZ "$work/resumed/dsm.tif" "$work/dsm_b.xyz"
 [ "$(wc -l <"$work/dsm_a.xyz")" = "$(wc -l <"$work/dsm_b.xyz")" ] || { echo "DSM sizes differ" >&2; status=1; }
 within "dsm.tif (m)" "$(max_diff "$work/dsm_a.xyz" "$work/dsm_b.xyz" 1 3)" 0.05
 within "dsm.tif cells beyond 1 mm (fraction)" "$(beyond "$work/dsm_a.xyz" "$work/dsm_b.xyz" 3 0.001)" 0.001
-las_points() { od -An -t u8 -j 247 -N 8 "$1" | tr -d ' '; }  # LAS 1.4: number of point records
-a=$(las_points "$work/reference/cloud.las") b=$(las_points "$work/resumed/cloud.las")
-echo "cloud.las: $a and $b points"
+las_points() { od -An -t u8 -j 247 -N 8 "$1" | tr -d ' '; }  # LAS / LAZ 1.4: number of point records
+a=$(las_points "$work/reference/cloud.laz") b=$(las_points "$work/resumed/cloud.laz")
+echo "cloud.laz: $a and $b points"
 # Cameras a micrometre apart (threaded solves) can move a fused point across
 # a voxel boundary: counts agree to 1 in 10,000, not to the point.
 [ "$a" -gt 0 ] && [ $(( (a > b ? a - b : b - a) * 10000 )) -le "$a" ] ||
-  { echo "cloud.las point counts differ by more than 0.01 %" >&2; status=1; }
+  { echo "cloud.laz point counts differ by more than 0.01 %" >&2; status=1; }
 # The orthomosaic and the terrain products are there, on the same grids.
 for f in ortho.tif dtm.tif contours.gpkg; do
   [ -s "$work/resumed/$f" ] || { echo "resumed run lacks $f" >&2; status=1; }
