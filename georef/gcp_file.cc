@@ -43,6 +43,126 @@ std::string Trim(const std::string& s) {
   return s.substr(a, b - a + 1);
 }
 
+// The key=value extras after a line's fixed columns (from column `first`);
+// the first bare word there is the point's name.
+struct PointExtras {
+  std::string name;
+  std::optional<double> sigma_h, sigma_v, sigma_px;
+  std::optional<Eigen::Vector3d> sigma_xyz;
+  void ApplyTo(GroundPoint* point) const {
+    if (sigma_h) point->sigma_h_m = sigma_h;
+    if (sigma_v) point->sigma_v_m = sigma_v;
+    if (sigma_xyz) point->sigma_xyz_m = sigma_xyz;
+  }
+};
+
+PointExtras ParseExtras(const std::vector<std::string>& cols, size_t first, const std::string& p, int number) {
+  PointExtras out;
+  std::optional<double> sigma_axis[3];
+  for (size_t c = first; c < cols.size(); ++c) {
+    const std::string& extra = cols[c];
+    const size_t eq = extra.find('=');
+    if (eq != std::string::npos) {
+      const std::string key = extra.substr(0, eq);
+      std::optional<double>* target = key == "sigma_h"    ? &out.sigma_h
+                                      : key == "sigma_v"  ? &out.sigma_v
+                                      : key == "sigma_x"  ? &sigma_axis[0]
+                                      : key == "sigma_y"  ? &sigma_axis[1]
+                                      : key == "sigma_z"  ? &sigma_axis[2]
+                                      : key == "sigma_px" ? &out.sigma_px
+                                                          : nullptr;
+      if (target) {
+        const auto value = ParseNumber(extra.substr(eq + 1));
+        if (!value || !(*value > 0.0) || !std::isfinite(*value)) {
+          throw ParseError(p, number, "expected a positive number of " +
+                                          std::string(key == "sigma_px" ? "pixels" : "metres") + " for " + key +
+                                          ", got '" + extra.substr(eq + 1) + "'");
+        }
+        *target = *value;
+      }
+      continue;
+    }
+    if (c == first) out.name = extra;
+  }
+  const int axes = sigma_axis[0].has_value() + sigma_axis[1].has_value() + sigma_axis[2].has_value();
+  if (axes != 0 && axes != 3) {
+    throw ParseError(p, number, "expected sigma_x, sigma_y and sigma_z together, got " + std::to_string(axes) +
+                                    " of them");
+  }
+  if (axes == 3) out.sigma_xyz = Eigen::Vector3d(*sigma_axis[0], *sigma_axis[1], *sigma_axis[2]);
+  return out;
+}
+
+// geo_z: a number, or "nan" / "-" for a point surveyed in plan only.
+std::optional<double> ParseHeight(const std::string& token, bool* no_height) {
+  std::string z = token;
+  for (char& c : z) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  *no_height = z == "nan" || z == "-";
+  if (*no_height) return std::numeric_limits<double>::quiet_NaN();
+  return ParseNumber(token);
+}
+
+// A line of a coordinates-only file: "name x y z [extras]" (whitespace) or
+// PIX4D's "label,x,y,z[,acc_h,acc_v]". std::nullopt when the line is not
+// one (a measurement line).
+std::optional<std::vector<std::string>> CoordinateColumns(const std::string& line) {
+  if (line.find(',') != std::string::npos) {
+    std::vector<std::string> cols;
+    std::string cell;
+    std::istringstream in(line);
+    while (std::getline(in, cell, ',')) cols.push_back(Trim(cell));
+    if (!line.empty() && line.back() == ',') cols.push_back("");
+    return cols;
+  }
+  std::vector<std::string> cols = SplitWhitespace(line);
+  // A name first (not a number), then three coordinates and extras only.
+  if (cols.size() < 4 || ParseNumber(cols[0])) return std::nullopt;
+  for (size_t c = 4; c < cols.size(); ++c) {
+    if (cols[c].find('=') == std::string::npos) return std::nullopt;
+  }
+  return cols;
+}
+
+GroundPoint ReadCoordinateLine(const std::vector<std::string>& cols, bool csv, const std::string& p, int number) {
+  static const char* kExpected = "'name x y z [sigma_h= sigma_v= | sigma_x= sigma_y= sigma_z=]' or PIX4D's "
+                                 "'label,x,y,z[,acc_h,acc_v]'";
+  if (cols.size() < 4 || (csv && cols.size() > 6)) {
+    throw ParseError(p, number, std::string("expected ") + kExpected + ", got " + std::to_string(cols.size()) +
+                                    (csv ? " comma-separated fields" : " columns"));
+  }
+  GroundPoint point;
+  point.name = cols[0];
+  point.first_line = number;
+  if (point.name.empty()) throw ParseError(p, number, "expected a point name in the first field, got an empty one");
+  static const char* kNames[] = {"x", "y", "z"};
+  for (int i = 0; i < 3; ++i) {
+    bool no_height = false;
+    const auto value = i == 2 ? ParseHeight(cols[3], &no_height) : ParseNumber(cols[i + 1]);
+    if (!value) {
+      throw ParseError(p, number, std::string("expected a number for ") + kNames[i] + " (field " +
+                                      std::to_string(i + 2) + ")" + (i == 2 ? " or 'nan' (no surveyed height)" : "") +
+                                      ", got '" + cols[i + 1] + "'");
+    }
+    point.xyz[i] = *value;
+    if (i == 2) point.horizontal_only = no_height;
+  }
+  if (csv) {
+    static const char* kAcc[] = {"acc_h", "acc_v"};
+    for (size_t c = 4; c < cols.size(); ++c) {
+      if (cols[c].empty()) continue;
+      const auto value = ParseNumber(cols[c]);
+      if (!value || !(*value > 0.0)) {
+        throw ParseError(p, number, std::string("expected a positive number of metres for ") + kAcc[c - 4] +
+                                        " (field " + std::to_string(c + 1) + "), got '" + cols[c] + "'");
+      }
+      (c == 4 ? point.sigma_h_m : point.sigma_v_m) = *value;
+    }
+  } else {
+    ParseExtras(cols, 4, p, number).ApplyTo(&point);
+  }
+  return point;
+}
+
 }  // namespace
 
 GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
@@ -62,6 +182,7 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
   std::map<std::string, size_t> by_name;
   const double shift = origin == PixelOrigin::kCorner ? 0.5 : 0.0;
   static const char* kColumns = "'geo_x geo_y geo_z im_x im_y image_name [gcp_name]'";
+  int first_point_line = 0;
 
   while (std::getline(in, line)) {
     ++number;
@@ -74,6 +195,34 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
         throw ParseError(p, number, "expected a CRS on the first line (e.g. EPSG:32632), got "
                                     "a measurement line");
       }
+      continue;
+    }
+    // The first point line decides the file's kind: marks (pixel columns)
+    // or coordinates only; the kinds do not mix.
+    const std::optional<std::vector<std::string>> coordinates = CoordinateColumns(trimmed);
+    if (first_point_line == 0) {
+      first_point_line = number;
+      file.coordinates_only = coordinates.has_value();
+      // PIX4D's CSV may open with a header row (label,x,y,z,...).
+      if (coordinates && trimmed.find(',') != std::string::npos && coordinates->size() >= 4 &&
+          !ParseNumber((*coordinates)[1]) && !ParseNumber((*coordinates)[2])) {
+        first_point_line = 0;
+        continue;
+      }
+    }
+    if (file.coordinates_only) {
+      if (!coordinates) {
+        throw ParseError(p, number, "expected a coordinates-only line 'name x y z [sigmas]' as on line " +
+                                        std::to_string(first_point_line) + ", got a line with pixel columns; give "
+                                        "the marks in a file of their own");
+      }
+      GroundPoint point = ReadCoordinateLine(*coordinates, trimmed.find(',') != std::string::npos, p, number);
+      if (const auto it = by_name.find(point.name); it != by_name.end()) {
+        throw ParseError(p, number, "point '" + point.name + "' is listed twice (first on line " +
+                                        std::to_string(file.points[it->second].first_line) + ")");
+      }
+      by_name[point.name] = file.points.size();
+      file.points.push_back(std::move(point));
       continue;
     }
     const std::vector<std::string> cols = SplitWhitespace(trimmed);
@@ -111,39 +260,8 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
                                       ", got im_x " + cols[3] + " im_y " + cols[4]);
     }
     const Eigen::Vector3d xyz(v[0], v[1], v[2]);
-    std::string name;
-    std::optional<double> sigma_h, sigma_v, sigma_px;
-    std::optional<double> sigma_axis[3];
-    for (size_t c = 6; c < cols.size(); ++c) {
-      const std::string& extra = cols[c];
-      const size_t eq = extra.find('=');
-      if (eq != std::string::npos) {
-        const std::string key = extra.substr(0, eq);
-        std::optional<double>* target = key == "sigma_h"    ? &sigma_h
-                                        : key == "sigma_v"  ? &sigma_v
-                                        : key == "sigma_x"  ? &sigma_axis[0]
-                                        : key == "sigma_y"  ? &sigma_axis[1]
-                                        : key == "sigma_z"  ? &sigma_axis[2]
-                                        : key == "sigma_px" ? &sigma_px
-                                                            : nullptr;
-        if (target) {
-          const auto value = ParseNumber(extra.substr(eq + 1));
-          if (!value || !(*value > 0.0) || !std::isfinite(*value)) {
-            throw ParseError(p, number, "expected a positive number of " +
-                                            std::string(key == "sigma_px" ? "pixels" : "metres") + " for " + key +
-                                            ", got '" + extra.substr(eq + 1) + "'");
-          }
-          *target = *value;
-        }
-        continue;
-      }
-      if (c == 6) name = extra;
-    }
-    const int axes = sigma_axis[0].has_value() + sigma_axis[1].has_value() + sigma_axis[2].has_value();
-    if (axes != 0 && axes != 3) {
-      throw ParseError(p, number, "expected sigma_x, sigma_y and sigma_z together, got " + std::to_string(axes) +
-                                      " of them");
-    }
+    PointExtras extras = ParseExtras(cols, 6, p, number);
+    std::string name = extras.name;
     if (name.empty()) {
       std::ostringstream key;
       key << std::setprecision(12) << "point@" << xyz.x() << "," << xyz.y() << "," << xyz.z();
@@ -171,15 +289,13 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
       throw ParseError(p, number, "point '" + name + "' has other coordinates here than on line " +
                                       std::to_string(point.first_line));
     }
-    if (sigma_h) point.sigma_h_m = sigma_h;
-    if (sigma_v) point.sigma_v_m = sigma_v;
-    if (axes == 3) point.sigma_xyz_m = Eigen::Vector3d(*sigma_axis[0], *sigma_axis[1], *sigma_axis[2]);
-    point.measurements.push_back({cols[5], Eigen::Vector2d(v[3] - shift, v[4] - shift), number, sigma_px});
+    extras.ApplyTo(&point);
+    point.measurements.push_back({cols[5], Eigen::Vector2d(v[3] - shift, v[4] - shift), number, extras.sigma_px});
   }
   if (file.crs.empty()) throw ParseError(p, 0, "empty file: expected a CRS on the first line");
   if (file.points.empty()) {
-    throw ParseError(p, file.crs_line, "no measurement lines after the CRS line: expected lines " +
-                                           std::string(kColumns));
+    throw ParseError(p, file.crs_line, "no point lines after the CRS line: expected lines " + std::string(kColumns) +
+                                           ", or coordinates only ('name x y z')");
   }
   return file;
 }

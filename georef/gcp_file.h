@@ -27,6 +27,16 @@
 // they are. COLMAP (and tools that measure from the image's outer corner)
 // put that centre at (0.5, 0.5): PixelOrigin::kCorner subtracts 0.5.
 //
+// Coordinates only (what a GNSS rover gives, before anyone has marked the
+// targets in the photos): the CRS line, then one line per point
+//
+//   name x y z [sigma_h=0.02 sigma_v=0.03 | sigma_x= sigma_y= sigma_z=]
+//
+// or PIX4D's comma-separated "label,x,y,z[,acc_h,acc_v]" (accuracies in
+// metres; a header row is skipped). GcpFile::coordinates_only is then set
+// and every point has no measurements: `aerotri mark` (and `run`) find the
+// targets in the photos. A file is one kind or the other.
+//
 // Errors: ParseError "file:line: what was expected, got what".
 
 #include <Eigen/Core>
@@ -61,6 +71,7 @@ struct GcpFile {
   std::string path;
   std::string crs;  // the first line
   int crs_line = 0;  // its line number (comments and blank lines may precede it)
+  bool coordinates_only = false;  // surveyed positions without marks in the photos
   std::vector<GroundPoint> points;
 };
 

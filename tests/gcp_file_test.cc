@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "georef/gcp_file.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -144,7 +145,7 @@ TEST(GcpFile, BadLinesNameFileLineAndExpectation) {
       {"1 2 3 4 5 a.jpg\n", 1, "expected a CRS on the first line"},
       {"EPSG:32632\n384902.84 5150696.35 449.91 4 5 a.jpg P\n384902.84 5150696.352 449.91 4 5 b.jpg P\n", 3,
        "point 'P' has other coordinates here than on line 2"},
-      {"EPSG:32632\n# surveyed, but nothing measured yet\n", 1, "no measurement lines after the CRS line"},
+      {"EPSG:32632\n# surveyed, but nothing measured yet\n", 1, "no point lines after the CRS line"},
       {"\n# only a comment\n", 0, "empty file"},
   };
   testing::TempDir dir;
@@ -222,6 +223,77 @@ GcpFile PointsAt(const std::string& path, const std::string& crs,
     file.points.push_back(p);
   }
   return file;
+}
+
+TEST(GcpFile, ReadsCoordinatesOnlyFilesWithSigmas) {
+  testing::TempDir dir;
+  Write(dir / "coords.txt",
+        "EPSG:32632\n"
+        "# from the rover, 2026-05-02\n"
+        "GCP1 384902.84 5150696.35 449.91 sigma_h=0.02 sigma_v=0.04\n"
+        "GCP2 384950.00 5150700.00 nan\n"
+        "GCP3 +384990.00 5150710.00 452.00 sigma_x=0.01 sigma_y=0.02 sigma_z=0.03\n");
+  const GcpFile file = ReadGcpFile(dir / "coords.txt");
+  EXPECT_TRUE(file.coordinates_only);
+  ASSERT_EQ(file.points.size(), 3u);
+  EXPECT_EQ(file.points[0].name, "GCP1");
+  EXPECT_DOUBLE_EQ(file.points[0].xyz.y(), 5150696.35);
+  EXPECT_DOUBLE_EQ(*file.points[0].sigma_h_m, 0.02);
+  EXPECT_DOUBLE_EQ(*file.points[0].sigma_v_m, 0.04);
+  EXPECT_TRUE(file.points[1].horizontal_only);
+  EXPECT_FALSE(file.points[0].horizontal_only);
+  EXPECT_DOUBLE_EQ(file.points[2].xyz.x(), 384990.0);
+  EXPECT_DOUBLE_EQ(file.points[2].sigma_xyz_m->z(), 0.03);
+  for (const GroundPoint& p : file.points) EXPECT_TRUE(p.measurements.empty());
+  EXPECT_EQ(file.points[2].first_line, 5);
+}
+
+TEST(GcpFile, ReadsPix4dCsvWithAndWithoutAccuracies) {
+  testing::TempDir dir;
+  Write(dir / "pix4d.csv",
+        "EPSG:32632\r\n"
+        "label,x,y,z,acc_h,acc_v\r\n"
+        "A1,384902.84,5150696.35,449.91,0.02,0.05\r\n"
+        "A2, 384950.00, 5150700.00, 451.00\r\n"
+        "A3,384990.00,5150710.00,452.00,,0.03\r\n");
+  const GcpFile file = ReadGcpFile(dir / "pix4d.csv");
+  EXPECT_TRUE(file.coordinates_only);
+  ASSERT_EQ(file.points.size(), 3u);
+  EXPECT_DOUBLE_EQ(*file.points[0].sigma_h_m, 0.02);
+  EXPECT_DOUBLE_EQ(*file.points[0].sigma_v_m, 0.05);
+  EXPECT_FALSE(file.points[1].sigma_h_m.has_value());
+  EXPECT_DOUBLE_EQ(file.points[1].xyz.x(), 384950.0);
+  EXPECT_FALSE(file.points[2].sigma_h_m.has_value());
+  EXPECT_DOUBLE_EQ(*file.points[2].sigma_v_m, 0.03);
+}
+
+TEST(GcpFile, CoordinatesOnlyErrorsNameLineAndValue) {
+  testing::TempDir dir;
+  const auto error_of = [&](const std::string& body) {
+    Write(dir / "bad.txt", "EPSG:32632\n" + body);
+    try {
+      ReadGcpFile(dir / "bad.txt");
+    } catch (const ParseError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_THAT(error_of("GCP1 384902 5150696 449\nGCP1 384903 5150696 449\n"),
+              ::testing::AllOf(::testing::HasSubstr("bad.txt:3"), ::testing::HasSubstr("listed twice"),
+                               ::testing::HasSubstr("line 2")));
+  EXPECT_THAT(error_of("GCP1 384902 north 449\n"),
+              ::testing::AllOf(::testing::HasSubstr("bad.txt:2"), ::testing::HasSubstr("'north'"),
+                               ::testing::HasSubstr("for y")));
+  EXPECT_THAT(error_of("GCP1 384902 5150696 449\n384902 5150696 449 10 20 IMG_1.JPG GCP2\n"),
+              ::testing::AllOf(::testing::HasSubstr("bad.txt:3"), ::testing::HasSubstr("pixel columns")));
+  EXPECT_THAT(error_of("A1,384902,5150696,449,-0.02\n"),
+              ::testing::AllOf(::testing::HasSubstr("bad.txt:2"), ::testing::HasSubstr("acc_h"),
+                               ::testing::HasSubstr("'-0.02'")));
+  EXPECT_THAT(error_of("GCP1 384902 5150696 449 sigma_h=0\n"),
+              ::testing::AllOf(::testing::HasSubstr("bad.txt:2"), ::testing::HasSubstr("sigma_h")));
+  // A file of marks stays one: its reader is unchanged.
+  Write(dir / "marks.txt", "EPSG:32632\n384902 5150696 449 10 20 IMG_1.JPG GCP1\n");
+  EXPECT_FALSE(ReadGcpFile(dir / "marks.txt").coordinates_only);
 }
 
 TEST(CheckChecksIndependent, TheControlFileAsTheCheckFileIsAUsageError) {

@@ -120,6 +120,7 @@ struct SimulateArgs {
   double relief_m = 12.0;
   int buildings = 0;
   std::string ground = "mixed";
+  std::string targets = "checker";
   double gps_sigma_h_m = 2.0;
   double gps_sigma_v_m = 4.0;
   double gps_drift_v_m = 0.0;

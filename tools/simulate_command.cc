@@ -35,6 +35,11 @@ void RegisterSimulateCommand(CLI::App& app, CommandAction* run) {
                   "(farmland of crop rows and tilled fields: texture that repeats, the hard case of matching)")
       ->check(CLI::IsMember({"mixed", "crop-rows"}))
       ->capture_default_str();
+  cmd->add_option("--targets", a->targets,
+                  "Pattern of the control and check targets: 'checker' (2x2 in a white frame), 'cross' (a white "
+                  "cross on a black square) or 'circle' (a bull's-eye: a white ring on a black square)")
+      ->check(CLI::IsMember({"checker", "cross", "circle"}))
+      ->capture_default_str();
   cmd->add_option("--gps-sigma-h", a->gps_sigma_h_m, "GPS horizontal noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--gps-sigma-v", a->gps_sigma_v_m, "GPS vertical noise (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--gps-drift-v", a->gps_drift_v_m,
@@ -80,6 +85,9 @@ int RunSimulate(const SimulateArgs& a, ToolContext& ctx) {
   o.write_gimbal_xmp = a.gimbal_xmp;
   o.num_buildings = a.buildings;
   o.ground_cover = a.ground == "crop-rows" ? GroundCover::kCropRows : GroundCover::kMixed;
+  o.target_pattern = a.targets == "cross"    ? TargetPattern::kCross
+                     : a.targets == "circle" ? TargetPattern::kBullseye
+                                             : TargetPattern::kChecker;
   o.survey.num_control_points = a.control;
   o.survey.num_check_points = a.checks;
   o.survey.num_tie_points = a.tie_points;

@@ -80,8 +80,19 @@ Eigen::Vector3d GroundAlbedo(double e, double n, const std::vector<GroundTarget>
     const double dx = e - t.east_north.x(), dy = n - t.east_north.y();
     const double half = 0.5 * t.size_m;
     if (std::abs(dx) <= half && std::abs(dy) <= half) {
+      const Eigen::Vector3d white(0.95, 0.95, 0.95), black(0.05, 0.05, 0.05);
+      if (t.pattern == TargetPattern::kCross) {
+        // Bars 0.15 of the side wide, reaching 0.85 of the way to the edge.
+        const bool bar = (std::abs(dx) < 0.15 * half && std::abs(dy) < 0.85 * half) ||
+                         (std::abs(dy) < 0.15 * half && std::abs(dx) < 0.85 * half);
+        return bar ? white : black;
+      }
+      if (t.pattern == TargetPattern::kBullseye) {
+        const double r = std::hypot(dx, dy);
+        return r < 0.7 * half && r >= 0.25 * half ? white : black;
+      }
       // A white border frame then a 2x2 checker: the centre is a sharp corner.
-      if (std::abs(dx) > 0.8 * half || std::abs(dy) > 0.8 * half) return {0.95, 0.95, 0.95};
+      if (std::abs(dx) > 0.8 * half || std::abs(dy) > 0.8 * half) return white;
       return ((dx >= 0) == (dy >= 0)) ? Eigen::Vector3d(0.05, 0.05, 0.05)
                                       : Eigen::Vector3d(0.95, 0.95, 0.95);
     }

@@ -25,9 +25,16 @@ enum class GroundCover {
               // the rows (the hard case of matching)
 };
 
+// The targets surveyors lay out, as aerotri mark finds them
+// (libphoto/targets/targets.h): a 2x2 checker in a white frame, a white
+// cross on a black square, a bull's-eye (a white disc on a black square
+// with a black dot at its centre).
+enum class TargetPattern { kChecker, kCross, kBullseye };
+
 struct GroundTarget {
   Eigen::Vector2d east_north;  // centre (ENU metres)
-  double size_m = 1.0;         // side of the square (2x2 checker)
+  double size_m = 1.0;         // side of the square
+  TargetPattern pattern = TargetPattern::kChecker;
 };
 
 // A flat-roofed box building standing on the terrain: its roof lies

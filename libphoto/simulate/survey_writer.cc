@@ -67,6 +67,36 @@ std::vector<BoxBuilding> PlaceBuildings(const SimulationOptions& options, const 
   return buildings;
 }
 
+// The control and check points as a surveyor brings them from the field
+// (coordinates only: `aerotri mark` finds the targets), and the targets'
+// exact centres in every photo (truth/marks.txt, control and checks).
+void WriteCoordinateFilesAndTrueMarks(const SyntheticGeoref& scene, const SparseModel& truth, const fs::path& dir) {
+  GcpFile marks;
+  for (const auto& [file, name] : {std::pair{&scene.control, "gcp_coordinates.txt"},
+                                   std::pair{&scene.checks, "check_coordinates.txt"}}) {
+    if (file->points.empty()) continue;
+    WriteFileAtomically(dir / name, [&](std::ostream& out) {
+      out << file->crs << "\n" << std::setprecision(12);
+      for (const GroundPoint& p : file->points) {
+        out << p.name << " " << p.xyz.x() << " " << p.xyz.y() << " " << p.xyz.z();
+        if (p.sigma_h_m) out << " sigma_h=" << *p.sigma_h_m;
+        if (p.sigma_v_m) out << " sigma_v=" << *p.sigma_v_m;
+        out << "\n";
+      }
+    });
+    marks.crs = file->crs;
+    for (GroundPoint p : file->points) {
+      for (GcpMeasurement& m : p.measurements) {
+        for (const Observation& obs : truth.observations) {
+          if (truth.points[obs.point].name == p.name && truth.images[obs.image].name == m.image) m.xy_px = obs.xy;
+        }
+      }
+      marks.points.push_back(p);
+    }
+  }
+  if (!marks.points.empty()) WriteGcpFile(marks, dir / "truth" / "marks.txt");
+}
+
 // GCP files: measurements are the true target centres plus clicking noise.
 void MarkTargets(const SimulationOptions& options, const SparseModel& truth, SyntheticGeoref* scene) {
   std::mt19937 rng(options.survey.seed + 101);
@@ -211,7 +241,7 @@ void WriteTruthOrtho(const SimulationOptions& options, const SyntheticGeoref& sc
   const SparseModel& truth = scene.survey.truth;
   std::vector<GroundTarget> targets;
   for (const Point& p : truth.points) {
-    if (p.role != PointRole::kTie) targets.push_back({p.position.head<2>(), 1.0});
+    if (p.role != PointRole::kTie) targets.push_back({p.position.head<2>(), 1.0, options.target_pattern});
   }
   const double margin = 10.0;
   const double w = options.survey.area_width_m + 2 * margin;
@@ -289,6 +319,9 @@ void WriteTruthJson(const SimulationOptions& options, const SyntheticGeoref& sce
     info["gps_drift_m_per_s"] = {drift.x() / duration, drift.y() / duration, drift.z() / duration};
   }
   info["click_noise_px"] = options.click_noise_px;
+  info["target_pattern"] = options.target_pattern == TargetPattern::kCross      ? "cross"
+                           : options.target_pattern == TargetPattern::kBullseye ? "circle"
+                                                                                : "checker";
   info["tie_point_noise_px"] = options.survey.pixel_noise_px;
   info["relief_m"] = options.survey.relief_m;
   info["seed"] = options.survey.seed;
@@ -352,7 +385,7 @@ void RenderPhotos(const SimulationOptions& options, const SyntheticGeoref& scene
   render.buildings = buildings;
   render.cover = options.ground_cover;
   for (const Point& p : truth.points) {
-    if (p.role != PointRole::kTie) render.targets.push_back({p.position.head<2>(), 1.0});
+    if (p.role != PointRole::kTie) render.targets.push_back({p.position.head<2>(), 1.0, options.target_pattern});
   }
   const Camera& camera = truth.cameras[0];
   for (size_t i = 0; i < truth.images.size(); ++i) {
@@ -393,6 +426,8 @@ void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir)
   // A file without points would be refused as input: none is written.
   if (!scene.control.points.empty()) WriteGcpFile(scene.control, dir / "gcp_list.txt");
   if (!scene.checks.points.empty()) WriteGcpFile(scene.checks, dir / "checkpoints.txt");
+  fs::create_directories(dir / "truth");
+  WriteCoordinateFilesAndTrueMarks(scene, truth, dir);
   const std::map<std::string, double> egm_altitude = WriteGpsFiles(options, scene, crs, dir);
   WriteAdjustInputs(options, scene, dir);
   WriteColmapText(truth, dir / "truth" / "model");

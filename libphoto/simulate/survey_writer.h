@@ -8,6 +8,8 @@
 //                        centres as measured in the images (OpenDroneMap
 //                        convention: integers at pixel centres)
 //   checkpoints.txt      check points, same format
+//   gcp_coordinates.txt, check_coordinates.txt   the same points, coordinates
+//                        only (what the GNSS rover gives: aerotri mark)
 //   gps.csv              the same noisy GPS as the EXIF (name,lat,lon,alt)
 //   geo.txt              the same again as OpenDroneMap's geo.txt (output
 //                        CRS, EGM96 altitudes for a 2D CRS, accuracies)
@@ -21,6 +23,8 @@
 //   truth/ortho.tif      the ground's true colours (targets, roofs) in the
 //                        output CRS at the GSD: what a true orthomosaic should be
 //   truth/dsm.tif        with buildings: the terrain and the roofs
+//   truth/marks.txt      every target's exact centre in every photo (control
+//                        and checks, gcp_list.txt format)
 //   truth/truth.json     origin, CRS, camera, GSD, noise levels
 // GPS altitudes (EXIF and CSV) are EGM96 heights, as EXIF "above sea level".
 
@@ -46,6 +50,7 @@ struct SimulationOptions {
   // terrain, truth/dsm.tif adds the roofs, truth.json lists them.
   int num_buildings = 0;
   GroundCover ground_cover = GroundCover::kMixed;
+  TargetPattern target_pattern = TargetPattern::kChecker;  // of every control and check target
   double sensor_width_mm = 6.4;  // for EXIF focal length in mm
   // DJI XMP gimbal angles in each JPEG (drone-dji:GimbalPitchDegree,
   // GimbalYawDegree, GimbalRollDegree): the true attitude with Gaussian
