@@ -248,6 +248,9 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
       {"match", "Select, match and verify image pairs (OUTPUT/matches.bin)", false, kMatchOptions | kThreadsOption},
       {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false,
        kReconstructOptions | kThreadsOption},
+      {"mark", "Find the targets of control and check points given as coordinates only ('name x y z', or "
+               "PIX4D's CSV) in the photos of a reconstructed workspace: OUTPUT/gcp_marks.txt, check_marks.txt "
+               "and marks.json (run marks them itself)", false, kGeoreferenceOptions | kThreadsOption},
       {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
                        "OUTPUT/report.json", false, kGeoreferenceOptions | kThreadsOption},
       {"dense", "Dense matching and the deliverables: OUTPUT/cloud.laz (ground-classified), cloud.ply, dsm.tif, "
@@ -420,8 +423,23 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
       ctx.Info("removed " + p.string() + " (left by an interrupted run)");
     }
   }
-  const PipelineOptions o = PipelineOptionsOf(a, ctx);
   const std::string& s = a.stage;
+  // The stages after marking read the marks in place of coordinates-only files.
+  const bool after_marking = s == "georeference" || s == "dense" || s == "ortho" || s == "report" || s == "check";
+  const PipelineOptions o = after_marking ? WithMarks(PipelineOptionsOf(a, ctx)) : PipelineOptionsOf(a, ctx);
+  if (s == "mark") {
+    if (!NeedsMarking(o)) {
+      throw UsageError("mark: give --gcp and/or --checkpoints files of coordinates only ('name x y z'); a file "
+                       "with pixel columns is marked already");
+    }
+    ValidateInputs(o);
+    RunMarkStage(o);
+    const nlohmann::json m = nlohmann::json::parse(ReadTextFile(std::filesystem::path(a.output) / "marks.json"));
+    *ctx.out << "control_marked=" << m["control"]["marked"] << "/" << m["control"]["points"]
+             << " checks_marked=" << m["checks"]["marked"] << "/" << m["checks"]["points"]
+             << " marks=" << (std::filesystem::path(a.output) / "marks.json").string() << "\n";
+    return 0;
+  }
   if (s == "run") {
     RunPipeline(o);  // its status is read back from report.json below
   } else if (s == "ingest") {

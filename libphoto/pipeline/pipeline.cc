@@ -246,8 +246,6 @@ bool RunReconstructStage(const PipelineOptions& o) {
   return true;
 }
 
-namespace {
-
 // Scales a working-resolution model to each image's full resolution: one
 // camera per (group, full size); f, cx, cy and observations scale about the
 // pixel-centre convention, distortion coefficients are unit-free.
@@ -281,8 +279,6 @@ SparseModel ToFullResolution(const SparseModel& model, const IngestView& ingest)
   }
   return out;
 }
-
-}  // namespace
 
 // The georeference stage's inputs and options, from the workspace's ingest
 // record: one definition for the stage and for `check --leave-one-out`.
@@ -368,6 +364,36 @@ void AddIntrinsicsInMmOf(const PipelineOptions& o, const IngestView& ingest, jso
     }
   }
   if (report->contains("adjustment")) AddIntrinsicsInMm(&(*report)["adjustment"], pixel_size_mm, source);
+}
+
+// Targets marked from coordinates (the mark stage, when the control or
+// check files were its marks): the summary, and a warning per point left
+// out.
+void AddMarking(const PipelineOptions& o, json* report) {
+  const fs::path path = o.workspace / "marks.json";
+  const bool used = o.gcp == o.workspace / "gcp_marks.txt" || o.checkpoints == o.workspace / "check_marks.txt";
+  if (!fs::exists(path) || !used) return;
+  const json marks = ReadJson(path, "mark");
+  (*report)["marking"] = {{"file", path.string()},
+                          {"control", marks.at("control")},
+                          {"checks", marks.at("checks")},
+                          {"search_radius_m", marks.at("search_radius_m")}};
+  std::vector<std::string> left_out;
+  std::string text;
+  for (const json& p : marks.at("points")) {
+    const std::string status = p.at("status");
+    if (status == "MARKED" || status == "SINGLE_PHOTO") continue;
+    left_out.push_back(p.at("name"));
+    text += (text.empty() ? "" : "; ") + p.at("name").get<std::string>() + " (" + p.value("role", "") + "): " +
+            status + ", " + p.value("reason", "");
+  }
+  if (left_out.empty()) return;
+  if (!report->contains("warnings")) (*report)["warnings"] = json::array();
+  (*report)["warnings"].push_back({{"code", "TARGETS_NOT_MARKED"},
+                                   {"message", std::to_string(left_out.size()) +
+                                                   " surveyed points were not marked in the photos and are not in "
+                                                   "the adjustment (marks.json, marks.html): " + text},
+                                   {"items", left_out}});
 }
 
 // The survey's status: the adjustment's findings, photos left out, input
@@ -492,6 +518,7 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   // What the photos say about their cameras, by vendor (ingest.json has it per photo).
   report["camera_metadata"] = ingest_doc.value("camera_metadata", json::object());
 
+  AddMarking(o, &report);
   SetSurveyStatus(recon, ingest, registered, &report);
 
   WriteColmapText(ToFullResolution(model, ingest), o.workspace / "sparse");
@@ -631,12 +658,15 @@ void RemoveDepthMaps(const PipelineOptions& o) {
              " MB, fused into the cloud; --keep-depth-maps keeps them)");
 }
 
-std::string RunPipeline(const PipelineOptions& o) {
-  ValidateInputs(o);
-  RunIngestStage(o);
-  RunFeatureStage(o);
-  RunMatchStage(o);
-  RunReconstructStage(o);
+std::string RunPipeline(const PipelineOptions& given) {
+  ValidateInputs(given);
+  RunIngestStage(given);
+  RunFeatureStage(given);
+  RunMatchStage(given);
+  RunReconstructStage(given);
+  RunMarkStage(given);
+  // From here on, control and check files of coordinates alone are their marks.
+  const PipelineOptions o = WithMarks(given);
   RunGeoreferenceStage(o);
   const std::string status = SurveyStatusOf(o.workspace);
   if (status == "failed" && !o.keep_going) {

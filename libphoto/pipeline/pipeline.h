@@ -10,6 +10,8 @@
 //   match        matches.bin, matches.json   verified pairs, overlap summary
 //   reconstruct  reconstruction/ (COLMAP text, arbitrary frame, working px)
 //                + reconstruction.json  per-image registration
+//   mark         gcp_marks.txt, check_marks.txt, marks.json, marks.html
+//                (only for control / check files of coordinates alone)
 //   georeference sparse/ (COLMAP text, ENU metres, full-resolution pixels),
 //                georeferenced/ (the same at the working resolution),
 //                cameras.csv (positions in the output CRS), report.json
@@ -133,6 +135,16 @@ bool RunIngestStage(const PipelineOptions& options);
 bool RunFeatureStage(const PipelineOptions& options);
 bool RunMatchStage(const PipelineOptions& options);
 bool RunReconstructStage(const PipelineOptions& options);
+// Control or check files with coordinates only (GcpFile::coordinates_only):
+// their targets found in the photos (libphoto/targets/marking.h), written
+// as OUTPUT/gcp_marks.txt and check_marks.txt, with OUTPUT/marks.json (per
+// point and photo: predicted, marked, confidence, or why not). Does
+// nothing (and removes an earlier marking's files) when no file needs it.
+bool RunMarkStage(const PipelineOptions& options);
+bool NeedsMarking(const PipelineOptions& options);
+// The options the stages after marking read: coordinates-only files
+// replaced by the workspace's marks (IoError when not marked yet).
+PipelineOptions WithMarks(const PipelineOptions& options);
 bool RunGeoreferenceStage(const PipelineOptions& options);
 
 bool RunDenseStage(const PipelineOptions& options);

@@ -152,6 +152,9 @@ SurveyAdjustmentInputs GeoreferenceInputs(const PipelineOptions& o, const Ingest
 GeoreferenceOptions GeoreferenceStageOptions(const PipelineOptions& o, const IngestView& ingest);
 
 IngestView LoadIngest(const PipelineOptions& o);
+// A working-resolution model at each photo's full resolution (one camera
+// per group and size; pixels scaled about the pixel-centre convention).
+SparseModel ToFullResolution(const SparseModel& model, const IngestView& ingest);
 // Features of the usable images (empty for others); images whose features
 // are missing are marked unusable.
 std::vector<ImageFeatures> LoadFeatures(const PipelineOptions& o, IngestView* ingest);
