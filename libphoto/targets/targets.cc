@@ -89,8 +89,20 @@ std::vector<TargetDetection> DetectCheckerTargets(const cv::Mat& gray8, const Ta
   cv::Mat light;  // for the rings: little blur, the pattern's own edges
   cv::GaussianBlur(f, light, cv::Size(0, 0), 0.7);
   std::vector<TargetDetection> found;
+  const auto refine = [&](const Eigen::Vector2d& from, int half) {
+    std::vector<cv::Point2f> corner = {cv::Point2f(static_cast<float>(from.x()), static_cast<float>(from.y()))};
+    cv::cornerSubPix(light, corner, cv::Size(half, half), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
+    return Eigen::Vector2d(corner[0].x, corner[0].y);
+  };
   for (const auto& [strength, at] : candidates) {
-    const Eigen::Vector2d c(at.x, at.y);
+    // The rings about the pixel nearest a saddle would be lopsided by up
+    // to half a pixel: first a centre from the nearest few pixels.
+    Eigen::Vector2d c(at.x, at.y);
+    if (at.x >= 4 && at.y >= 4 && at.x < f.cols - 4 && at.y < f.rows - 4) {
+      const Eigen::Vector2d near = refine(c, 3);
+      if ((near - c).norm() < 1.5) c = near;
+    }
     double size = 0.0, contrast = 1e9, asymmetry = 0.0;
     int passed = 0;
     for (double r = 2.5; r <= options.max_radius_px; r *= 1.35) {
@@ -108,10 +120,7 @@ std::vector<TargetDetection> DetectCheckerTargets(const cv::Mat& gray8, const Ta
     if (near) continue;
     // Förstner's centre over the checker's own squares (not its frame).
     const int half = static_cast<int>(std::clamp(0.6 * size, 2.0, 25.0));
-    std::vector<cv::Point2f> corner = {cv::Point2f(at.x, at.y)};
-    cv::cornerSubPix(light, corner, cv::Size(half, half), cv::Size(-1, -1),
-                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
-    const Eigen::Vector2d centre(corner[0].x, corner[0].y);
+    const Eigen::Vector2d centre = refine(c, half);
     if ((centre - c).norm() > 2.0) continue;
     TargetDetection d;
     d.kind = TargetKind::kChecker;
