@@ -215,8 +215,11 @@ std::string Fixed(double v, int digits) {
 }
 
 // A point's status from its clusters; its marks from the chosen one.
+// common_offset: the median offset of the points marked unambiguously
+// (none on the first pass), which settles a point with two targets near it.
 void Decide(const SparseModel& model, const std::vector<Candidate>& cands, const std::vector<Cluster>& clusters,
-            double radius_m, const Similarity& to_enu, const Surveyed& s, PointMarking* p) {
+            double radius_m, const Similarity& to_enu, const Surveyed& s, const Eigen::Vector3d* common_offset,
+            PointMarking* p) {
   if (p->photos.empty()) {
     p->status = "NOT_SEEN";
     p->reason = "no photo's footprint holds it (surveyed outside the area flown, or a wrong coordinate)";
@@ -247,16 +250,34 @@ void Decide(const SparseModel& model, const std::vector<Candidate>& cands, const
                 (cands.empty() ? "" : " (" + std::to_string(cands.size()) + " detections that no two photos agree on)");
     return;
   }
-  const Cluster& best = clusters[0];
-  if (clusters.size() > 1 && clusters[1].members.size() >= std::max<size_t>(2, best.members.size() / 2) &&
-      (to_enu.scale * (clusters[1].position - best.position)).norm() > 0.2) {
+  size_t chosen = 0;
+  const bool two = clusters.size() > 1 &&
+                   clusters[1].members.size() >= std::max<size_t>(2, clusters[0].members.size() / 2) &&
+                   (to_enu.scale * (clusters[1].position - clusters[0].position)).norm() > 0.2;
+  bool resolved = !two;
+  if (two && common_offset) {
+    // The GPS georeferencing's offset is common to every point: the
+    // target that shows it (within a metre, the other three times as far
+    // and over 2 m off) is this point's; anything less is not decided.
+    double d[2];
+    for (int k = 0; k < 2; ++k) d[k] = (to_enu.Apply(clusters[k].position) - s.enu - *common_offset).norm();
+    const int nearer = d[1] < d[0] ? 1 : 0;
+    if (d[nearer] < 1.0 && d[1 - nearer] > std::max(2.0, 3.0 * d[nearer])) {
+      chosen = static_cast<size_t>(nearer);
+      resolved = true;
+    }
+  }
+  if (!resolved) {
     p->status = "TWO_CANDIDATES";
     p->reason = "two targets near it, " +
-                Fixed(to_enu.scale * (clusters[1].position - best.position).norm(), 2) + " m apart, seen in " +
-                std::to_string(best.members.size()) + " and " + std::to_string(clusters[1].members.size()) +
-                " photos: which is this point's is not guessed";
+                Fixed(to_enu.scale * (clusters[1].position - clusters[0].position).norm(), 2) +
+                " m apart, seen in " + std::to_string(clusters[0].members.size()) + " and " +
+                std::to_string(clusters[1].members.size()) +
+                " photos, neither clearly at the offset the other points show: which is this point's is not guessed";
     return;
   }
+  const Cluster& best = clusters[chosen];
+  p->reason.clear();
   p->status = "MARKED";
   p->target_model = best.position;
   p->offset_m = to_enu.Apply(best.position) - s.enu;
@@ -303,11 +324,26 @@ MarkingResult MarkControl(const SparseModel& model, const std::filesystem::path&
   std::vector<std::vector<Candidate>> candidates(points.size());
   DetectNearPredictions(model, images_dir, points, result.model_to_enu, result.search_radius_m, options,
                         &result.points, &candidates);
+  std::vector<std::vector<Cluster>> clusters(points.size());
   for (size_t k = 0; k < points.size(); ++k) {
     PointMarking& p = result.points[k];
     std::sort(p.photos.begin(), p.photos.end(), [](const TargetMark& a, const TargetMark& b) { return a.image < b.image; });
-    const std::vector<Cluster> clusters = ClusterCandidates(model, candidates[k], options.max_reprojection_px);
-    Decide(model, candidates[k], clusters, result.search_radius_m, result.model_to_enu, points[k], &p);
+    clusters[k] = ClusterCandidates(model, candidates[k], options.max_reprojection_px);
+    Decide(model, candidates[k], clusters[k], result.search_radius_m, result.model_to_enu, points[k], nullptr, &p);
+  }
+  // Points with two targets near them, again, knowing the common offset.
+  std::vector<double> offsets[3];
+  for (const PointMarking& p : result.points) {
+    if (p.status != "MARKED") continue;
+    for (int a = 0; a < 3; ++a) offsets[a].push_back(p.offset_m[a]);
+  }
+  if (offsets[0].size() >= 2) {
+    const Eigen::Vector3d common(Median(offsets[0]), Median(offsets[1]), Median(offsets[2]));
+    for (size_t k = 0; k < points.size(); ++k) {
+      if (result.points[k].status != "TWO_CANDIDATES") continue;
+      Decide(model, candidates[k], clusters[k], result.search_radius_m, result.model_to_enu, points[k], &common,
+             &result.points[k]);
+    }
   }
   // One target for two points: neither is marked.
   for (size_t a = 0; a < points.size(); ++a) {

@@ -16,7 +16,9 @@
 //   NOT_FOUND       no target within the search radius of its surveyed
 //                   position in the photos that should see it (a point
 //                   surveyed far from its target, or a target covered);
-//   TWO_CANDIDATES  two targets near it, each seen in several photos;
+//   TWO_CANDIDATES  two targets near it, each seen in several photos, and
+//                   neither clearly at the GPS georeferencing's offset that
+//                   the points marked unambiguously show;
 //   SHARED_TARGET   its target is another point's too (two names for one
 //                   target, or two coordinates for one).
 // A point seen in one photo only is marked when one target is found there
