@@ -157,7 +157,7 @@ using MarkingProblems = Marking;
 
 TEST_P(MarkingProblems, UnseenOffsetAndSharedPointsAreReportedNotMarked) {
   const GcpFile control = ReadGcpFile(dir_ / "survey" / "gcp_coordinates.txt");
-  ASSERT_GE(control.points.size(), 4u);
+  ASSERT_GE(control.points.size(), 6u);
   std::ofstream out(dir_ / "problems.txt");
   out << control.crs << "\n" << std::setprecision(12);
   const auto line = [&](const std::string& name, const Eigen::Vector3d& xyz) {
@@ -168,20 +168,28 @@ TEST_P(MarkingProblems, UnseenOffsetAndSharedPointsAreReportedNotMarked) {
   line("OFF30", control.points[2].xyz + Eigen::Vector3d(0.0, 30.0, 0.0));   // 30 m from its target
   line("TWIN_A", control.points[3].xyz);                                     // two names, one target
   line("TWIN_B", control.points[3].xyz + Eigen::Vector3d(0.04, -0.03, 0.0));
+  // Two more good points: with them the GPS georeferencing's common offset
+  // is known, which settles a good point with another target near it.
+  line("GOOD4", control.points[4].xyz);
+  line("GOOD5", control.points[5].xyz);
   out.close();
   o_.gcp = dir_ / "problems.txt";
   ASSERT_TRUE(RunMarkStage(o_));
   const nlohmann::json marks = nlohmann::json::parse(ReadTextFile(o_.workspace / "marks.json"));
   std::map<std::string, std::string> status;
-  for (const auto& p : marks["points"]) status[p["name"]] = p["status"];
-  EXPECT_EQ(status["GOOD"], "MARKED");
+  for (const auto& p : marks["points"]) {
+    status[p["name"]] = p["status"];
+    if (p.contains("reason")) std::printf("%s: %s\n", p["name"].get<std::string>().c_str(), p["reason"].get<std::string>().c_str());
+    if (p.contains("offset_from_gps_georeferencing_m")) std::printf("%s offset %s\n", p["name"].get<std::string>().c_str(), p["offset_from_gps_georeferencing_m"].dump().c_str());
+  }
+  for (const char* good : {"GOOD", "GOOD4", "GOOD5"}) EXPECT_EQ(status[good], "MARKED") << good;
   EXPECT_EQ(status["AWAY"], "NOT_SEEN");
   EXPECT_EQ(status["OFF30"], "NOT_FOUND");
   EXPECT_EQ(status["TWIN_A"], "SHARED_TARGET");
   EXPECT_EQ(status["TWIN_B"], "SHARED_TARGET");
-  // Only the good point is in the marks the survey reads.
+  // Only the good points are in the marks the survey reads.
   const GcpFile written = ReadGcpFile(o_.workspace / "gcp_marks.txt");
-  ASSERT_EQ(written.points.size(), 1u);
+  ASSERT_EQ(written.points.size(), 3u);
   EXPECT_EQ(written.points[0].name, "GOOD");
   // The georeference stage names the points left out.
   ASSERT_TRUE(RunGeoreferenceStage(WithMarks(o_)));

@@ -273,7 +273,12 @@ void Decide(const SparseModel& model, const std::vector<Candidate>& cands, const
                 Fixed(to_enu.scale * (clusters[1].position - clusters[0].position).norm(), 2) +
                 " m apart, seen in " + std::to_string(clusters[0].members.size()) + " and " +
                 std::to_string(clusters[1].members.size()) +
-                " photos, neither clearly at the offset the other points show: which is this point's is not guessed";
+                " photos, neither clearly at the offset the other points show" +
+                (common_offset ? " (" + Fixed((to_enu.Apply(clusters[0].position) - s.enu - *common_offset).norm(), 2) +
+                                     " and " + Fixed((to_enu.Apply(clusters[1].position) - s.enu - *common_offset).norm(), 2) +
+                                     " m from it)"
+                               : std::string()) +
+                ": which is this point's is not guessed";
     return;
   }
   const Cluster& best = clusters[chosen];
@@ -329,6 +334,15 @@ MarkingResult MarkControl(const SparseModel& model, const std::filesystem::path&
     PointMarking& p = result.points[k];
     std::sort(p.photos.begin(), p.photos.end(), [](const TargetMark& a, const TargetMark& b) { return a.image < b.image; });
     clusters[k] = ClusterCandidates(model, candidates[k], options.max_reprojection_px);
+    // Rays of two different targets can meet by chance within the
+    // tolerance (along an epipolar line): such a meeting far from where the
+    // point was searched for is no target of it.
+    const double limit = 1.5 * result.search_radius_m;
+    clusters[k].erase(std::remove_if(clusters[k].begin(), clusters[k].end(),
+                                     [&](const Cluster& c) {
+                                       return (result.model_to_enu.Apply(c.position) - points[k].enu).norm() > limit;
+                                     }),
+                      clusters[k].end());
     Decide(model, candidates[k], clusters[k], result.search_radius_m, result.model_to_enu, points[k], nullptr, &p);
   }
   // Points with two targets near them, again, knowing the common offset.
