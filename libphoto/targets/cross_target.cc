@@ -236,7 +236,7 @@ std::optional<CrossTarget> CrossOf(const cv::Mat& gray, const cv::Mat& dark, con
 
 }  // namespace
 
-std::vector<CrossTarget> DetectCrossTargets(const cv::Mat& image, const CrossTargetOptions& options) {
+cv::Mat Gray8Of(const cv::Mat& image) {
   cv::Mat gray8;
   if (image.channels() == 3) {
     cv::cvtColor(image, gray8, cv::COLOR_BGR2GRAY);
@@ -245,6 +245,11 @@ std::vector<CrossTarget> DetectCrossTargets(const cv::Mat& image, const CrossTar
   } else {
     gray8 = image;
   }
+  return gray8;
+}
+
+std::vector<CrossTarget> DetectCrossTargets(const cv::Mat& image, const CrossTargetOptions& options) {
+  const cv::Mat gray8 = Gray8Of(image);
   cv::Mat gray;
   gray8.convertTo(gray, CV_32F);
   cv::GaussianBlur(gray, gray, cv::Size(0, 0), 1.0);

@@ -40,6 +40,9 @@ struct CrossTarget {
   Eigen::Vector2d bar_direction[2] = {Eigen::Vector2d::UnitX(), Eigen::Vector2d::UnitY()};
 };
 
+// An 8-bit grey, BGR or BGRA image as 8-bit grey (grey as it is).
+cv::Mat Gray8Of(const cv::Mat& image);
+
 // Every cross target in an 8-bit grey or BGR image, the most confident first.
 std::vector<CrossTarget> DetectCrossTargets(const cv::Mat& image, const CrossTargetOptions& options = {});
 

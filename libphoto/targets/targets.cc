@@ -397,14 +397,7 @@ std::optional<TargetKind> TargetKindFromName(const std::string& name) {
 }
 
 std::vector<TargetDetection> DetectTargets(const cv::Mat& image, const TargetDetectionOptions& options) {
-  cv::Mat gray8;
-  if (image.channels() == 3) {
-    cv::cvtColor(image, gray8, cv::COLOR_BGR2GRAY);
-  } else if (image.channels() == 4) {
-    cv::cvtColor(image, gray8, cv::COLOR_BGRA2GRAY);
-  } else {
-    gray8 = image;
-  }
+  const cv::Mat gray8 = Gray8Of(image);
   std::vector<TargetDetection> all;
   for (const TargetKind kind : options.kinds) {
     std::vector<TargetDetection> found;
