@@ -96,6 +96,13 @@ PipelineOptions WithMarks(const PipelineOptions& o) {
   return out;
 }
 
+void CheckMarkingPossible(const PipelineOptions& o) {
+  if (!NeedsMarking(o) || LoadIngest(o).EnuOrigin()) return;
+  throw UsageError("marking targets from coordinates alone needs the photos' GPS to predict where the targets "
+                   "are, and none of the photos has it; mark the targets by hand (gcp_list.txt with pixel "
+                   "columns) for a survey without GPS");
+}
+
 bool RunMarkStage(const PipelineOptions& o) {
   if (!NeedsMarking(o)) {
     // An earlier run's marks are not this run's control.
@@ -116,11 +123,7 @@ bool RunMarkStage(const PipelineOptions& o) {
   const std::optional<Geodetic> origin = ingest.EnuOrigin();
   const GcpFile control = o.gcp.empty() ? GcpFile{} : ReadGcpFile(o.gcp, o.gcp_pixel_origin);
   const GcpFile checks = o.checkpoints.empty() ? GcpFile{} : ReadGcpFile(o.checkpoints, o.gcp_pixel_origin);
-  if (!origin) {
-    throw UsageError("marking targets from coordinates alone needs the photos' GPS to predict where the targets "
-                     "are, and none of the photos has it; mark the targets by hand (gcp_list.txt with pixel "
-                     "columns) for a survey without GPS");
-  }
+  if (!origin) CheckMarkingPossible(o);
   MarkingOptions mo;
   mo.num_threads = o.num_threads;
   mo.progress = StageProgress(o, "mark");

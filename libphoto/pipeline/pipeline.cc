@@ -661,6 +661,7 @@ void RemoveDepthMaps(const PipelineOptions& o) {
 std::string RunPipeline(const PipelineOptions& given) {
   ValidateInputs(given);
   RunIngestStage(given);
+  CheckMarkingPossible(given);
   RunFeatureStage(given);
   RunMatchStage(given);
   RunReconstructStage(given);

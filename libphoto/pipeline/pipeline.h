@@ -142,6 +142,9 @@ bool RunReconstructStage(const PipelineOptions& options);
 // nothing (and removes an earlier marking's files) when no file needs it.
 bool RunMarkStage(const PipelineOptions& options);
 bool NeedsMarking(const PipelineOptions& options);
+// After ingest: throws UsageError when marking is needed and no photo has
+// GPS (before the heavy stages, rather than after the reconstruction).
+void CheckMarkingPossible(const PipelineOptions& options);
 // The options the stages after marking read: coordinates-only files
 // replaced by the workspace's marks (IoError when not marked yet).
 PipelineOptions WithMarks(const PipelineOptions& options);
