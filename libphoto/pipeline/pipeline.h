@@ -10,7 +10,7 @@
 //   match        matches.bin, matches.json   verified pairs, overlap summary
 //   reconstruct  reconstruction/ (COLMAP text, arbitrary frame, working px)
 //                + reconstruction.json  per-image registration
-//   mark         gcp_marks.txt, check_marks.txt, marks.json, marks.html
+//   mark         gcp_marks.txt, check_marks.txt, marks.json
 //                (only for control / check files of coordinates alone)
 //   georeference sparse/ (COLMAP text, ENU metres, full-resolution pixels),
 //                georeferenced/ (the same at the working resolution),
