@@ -392,7 +392,7 @@ void AddMarking(const PipelineOptions& o, json* report) {
   (*report)["warnings"].push_back({{"code", "TARGETS_NOT_MARKED"},
                                    {"message", std::to_string(left_out.size()) +
                                                    " surveyed points were not marked in the photos and are not in "
-                                                   "the adjustment (marks.json, marks.html): " + text},
+                                                   "the adjustment (marks.json says why): " + text},
                                    {"items", left_out}});
 }
 
