@@ -300,21 +300,33 @@ GcpFile ReadGcpFile(const std::filesystem::path& path, PixelOrigin origin) {
   return file;
 }
 
+std::string GcpCoordinatesText(const GroundPoint& point) {
+  std::ostringstream out;
+  out << std::setprecision(12) << point.xyz.x() << " " << point.xyz.y() << " " << point.xyz.z();
+  return out.str();
+}
+
+std::string GcpSigmasText(const GroundPoint& point) {
+  std::ostringstream out;
+  out << std::setprecision(12);
+  if (point.sigma_h_m) out << " sigma_h=" << *point.sigma_h_m;
+  if (point.sigma_v_m) out << " sigma_v=" << *point.sigma_v_m;
+  if (point.sigma_xyz_m) {
+    out << " sigma_x=" << point.sigma_xyz_m->x() << " sigma_y=" << point.sigma_xyz_m->y()
+        << " sigma_z=" << point.sigma_xyz_m->z();
+  }
+  return out.str();
+}
+
 void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path) {
   WriteFileAtomically(path, [&](std::ostream& out) {
-    out << file.crs << "\n" << std::setprecision(12);
+    out << file.crs << "\n";
     for (const GroundPoint& point : file.points) {
+      const std::string coordinates = GcpCoordinatesText(point), sigmas = GcpSigmasText(point);
       for (const GcpMeasurement& m : point.measurements) {
-        out << point.xyz.x() << " " << point.xyz.y() << " " << point.xyz.z() << " "
-            << std::setprecision(8) << m.xy_px.x() << " " << m.xy_px.y() << " "
-            << std::setprecision(12) << m.image << " " << point.name;
-        if (point.sigma_h_m) out << " sigma_h=" << *point.sigma_h_m;
-        if (point.sigma_v_m) out << " sigma_v=" << *point.sigma_v_m;
-        if (point.sigma_xyz_m) {
-          out << " sigma_x=" << point.sigma_xyz_m->x() << " sigma_y=" << point.sigma_xyz_m->y()
-              << " sigma_z=" << point.sigma_xyz_m->z();
-        }
-        if (m.sigma_px) out << " sigma_px=" << *m.sigma_px;
+        out << coordinates << " " << std::setprecision(8) << m.xy_px.x() << " " << m.xy_px.y() << " "
+            << m.image << " " << point.name << sigmas;
+        if (m.sigma_px) out << " sigma_px=" << std::setprecision(12) << *m.sigma_px;
         out << "\n";
       }
     }

@@ -96,4 +96,11 @@ void CheckChecksIndependent(const GcpFile& control, const GcpFile& checks, doubl
 // PixelOrigin::kCentre), atomically.
 void WriteGcpFile(const GcpFile& file, const std::filesystem::path& path);
 
+// The fields of a gcp_list.txt line that WriteGcpFile writes for a point:
+// "x y z" (12 significant digits), and its sigmas (" sigma_h=… sigma_v=…",
+// empty when the file gave none). The review page (libphoto/report/
+// review_page.h) writes its lines from them.
+std::string GcpCoordinatesText(const GroundPoint& point);
+std::string GcpSigmasText(const GroundPoint& point);
+
 }  // namespace aerotri

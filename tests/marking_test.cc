@@ -18,7 +18,12 @@
 
 #include "georef/gcp_file.h"
 #include "libphoto/base/atomic_file.h"
+#include "georef/crs.h"
+#include "libphoto/io/colmap_text.h"
 #include "libphoto/pipeline/pipeline.h"
+#include "libphoto/pipeline/workspace.h"
+#include "libphoto/survey/survey_phases.h"
+#include "libphoto/targets/marking.h"
 #include "libphoto/simulate/survey_writer.h"
 #include "tests/test_util.h"
 
@@ -93,6 +98,15 @@ int CompareWithTruth(const fs::path& truth_file, const std::vector<fs::path>& ma
   return missing;
 }
 
+// The data of a review page (marks.html): the JSON its script reads.
+nlohmann::json ReviewPageData(const fs::path& page) {
+  const std::string html = ReadTextFile(page);
+  const std::string open = "<script type='application/json' id='data'>";
+  const size_t begin = html.find(open), end = html.find("</script>", begin);
+  if (begin == std::string::npos || end == std::string::npos) return nullptr;
+  return nlohmann::json::parse(html.substr(begin + open.size(), end - begin - open.size()));
+}
+
 TEST_P(Marking, TargetsAreMarkedAtTheirTrueCentresAndTheSurveyMatchesTheTruthMarks) {
   o_.gcp = dir_ / "survey" / "gcp_coordinates.txt";
   o_.checkpoints = dir_ / "survey" / "check_coordinates.txt";
@@ -114,8 +128,64 @@ TEST_P(Marking, TargetsAreMarkedAtTheirTrueCentresAndTheSurveyMatchesTheTruthMar
   const nlohmann::json marks = nlohmann::json::parse(ReadTextFile(o_.workspace / "marks.json"));
   EXPECT_GE(marks["control"]["marked"], 5);
   EXPECT_EQ(marks["checks"]["marked"], 4);
+  // The review page: every point, a chip of every photo it was predicted in,
+  // the coordinates' fields for the export; no residuals before adjusting.
+  const nlohmann::json page = ReviewPageData(o_.workspace / "marks.html");
+  ASSERT_TRUE(page.is_object());
+  EXPECT_FALSE(page["adjusted"].get<bool>());
+  ASSERT_EQ(page["points"].size(), marks["points"].size());
+  for (size_t i = 0; i < page["points"].size(); ++i) {
+    const auto& p = page["points"][i];
+    EXPECT_EQ(p["name"], marks["points"][i]["name"]);
+    EXPECT_FALSE(p["coordinates"].get<std::string>().empty()) << p["name"];
+    EXPECT_EQ(p["photos"].size(), marks["points"][i]["photos"].size()) << p["name"];
+    for (const auto& c : p["photos"]) {
+      EXPECT_EQ(c["chip"].get<std::string>().rfind("data:image/jpeg;base64,", 0), 0u) << p["name"] << " " << c["image"];
+    }
+  }
+  EXPECT_EQ(page["files"]["control"]["crs"], ReadGcpFile(o_.gcp).crs);
   // A rerun with the same inputs is done already.
   EXPECT_FALSE(RunMarkStage(o_));
+
+  // Without GPS: the same photos, the model in a frame of its own (turned,
+  // scaled, moved), the lists placed on the targets found in the photos.
+  {
+    IngestView ingest = LoadIngest(o_);
+    SparseModel model = ToFullResolution(ReadColmapText(o_.workspace / "reconstruction"), ingest);
+    Similarity arbitrary;
+    arbitrary.scale = 0.37;
+    arbitrary.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(2.1, Eigen::Vector3d(0.3, -0.5, 0.8).normalized()));
+    arbitrary.translation = Eigen::Vector3d(120.0, -40.0, 7.0);
+    ApplySimilarity(arbitrary, &model);
+    const GcpFile control = ReadGcpFile(o_.gcp), checks = ReadGcpFile(o_.checkpoints);
+    const Geodetic origin = Crs::FromString(control.crs).ToGeodetic(control.points[0].xyz);
+    MarkingOptions mo;
+    mo.num_threads = 2;
+    const MarkingResult r = MarkControl(model, ingest.ImagesDir(o_), {}, origin, control, &checks, mo);
+    EXPECT_EQ(r.method, "targets");
+    WriteGcpFile(r.control_marks, dir_ / "no_gps_control.txt");
+    WriteGcpFile(r.check_marks, dir_ / "no_gps_checks.txt");
+    double median_no_gps = 0, worst_no_gps = 0;
+    int extra_no_gps = 0;
+    const int missing_no_gps =
+        CompareWithTruth(dir_ / "survey" / "truth" / "marks.txt",
+                         {dir_ / "no_gps_control.txt", dir_ / "no_gps_checks.txt"}, &median_no_gps, &worst_no_gps,
+                         &extra_no_gps);
+    int marked_points = 0;
+    for (const PointMarking& p : r.points) marked_points += p.Marked();
+    std::printf("%s targets without GPS: %d targets found, %d of 10 points placed (RMS %.3f m), %d marked; median "
+                "%.3f px, worst %.3f px, %d visible not marked, %d marks of nothing\n",
+                GetParam().name, r.targets_found, r.placed_points, r.placement_rms_m, marked_points, median_no_gps,
+                worst_no_gps, missing_no_gps, extra_no_gps);
+    // The same marks as with GPS: the detections are the same; only how a
+    // point finds its target differs.
+    EXPECT_GE(r.placed_points, marked_points - 1);
+    EXPECT_EQ(marked_points, marks["control"]["marked"].get<int>() + marks["checks"]["marked"].get<int>());
+    EXPECT_EQ(extra_no_gps, 0);
+    EXPECT_LE(missing_no_gps, 1.2 * missing + 2);  // whole photos, not windows: a few more or fewer
+    EXPECT_LT(median_no_gps, 0.15);
+    EXPECT_LT(worst_no_gps, 0.5);
+  }
 
   // The survey from the marks against the survey from the true marks.
   const PipelineOptions marked = WithMarks(o_);
@@ -124,6 +194,16 @@ TEST_P(Marking, TargetsAreMarkedAtTheirTrueCentresAndTheSurveyMatchesTheTruthMar
   const nlohmann::json report = nlohmann::json::parse(ReadTextFile(o_.workspace / "report.json"));
   EXPECT_NE(report["status"], "failed");
   EXPECT_EQ(report["marking"]["control"]["marked"], marks["control"]["marked"]);
+  // The report stage redraws the page with the adjustment's residuals and
+  // w-tests, mark by mark.
+  ASSERT_TRUE(RunReportStage(marked));
+  const nlohmann::json adjusted_page = ReviewPageData(o_.workspace / "marks.html");
+  EXPECT_TRUE(adjusted_page["adjusted"].get<bool>());
+  int with_residual = 0;
+  for (const auto& p : adjusted_page["points"]) {
+    for (const auto& c : p["photos"]) with_residual += c.contains("residual_px");
+  }
+  EXPECT_EQ(with_residual, report["adjustment"]["data_snooping"]["marks"].size());
   const double auto_rmse = report["check_points"]["rmse_3d_m"];
   // The truth marks, split into control and checks as the survey's files.
   GcpFile control = ReadGcpFile(dir_ / "survey" / "gcp_list.txt"), checks = ReadGcpFile(dir_ / "survey" / "checkpoints.txt");
@@ -146,6 +226,16 @@ TEST_P(Marking, TargetsAreMarkedAtTheirTrueCentresAndTheSurveyMatchesTheTruthMar
   std::printf("%s targets: check RMSE 3D %.4f m from the marks, %.4f m from the true marks (%.2fx)\n",
               GetParam().name, auto_rmse, truth_rmse, auto_rmse / truth_rmse);
   EXPECT_LT(auto_rmse, 1.1 * truth_rmse + 0.002);
+  // The survey from the marks made without GPS.
+  PipelineOptions by_no_gps = o_;
+  by_no_gps.gcp = dir_ / "no_gps_control.txt";
+  by_no_gps.checkpoints = dir_ / "no_gps_checks.txt";
+  ASSERT_TRUE(RunGeoreferenceStage(by_no_gps));
+  const double no_gps_rmse =
+      nlohmann::json::parse(ReadTextFile(o_.workspace / "report.json"))["check_points"]["rmse_3d_m"];
+  std::printf("%s targets: check RMSE 3D %.4f m from the marks made without GPS (%.2fx the true marks')\n",
+              GetParam().name, no_gps_rmse, no_gps_rmse / truth_rmse);
+  EXPECT_LT(no_gps_rmse, 1.1 * truth_rmse + 0.002);
 }
 
 INSTANTIATE_TEST_SUITE_P(Kinds, Marking,

@@ -249,15 +249,17 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
       {"reconstruct", "Incremental reconstruction from the matches (OUTPUT/reconstruction/)", false,
        kReconstructOptions | kThreadsOption},
       {"mark", "Find the targets of control and check points given as coordinates only ('name x y z', or "
-               "PIX4D's CSV) in the photos of a reconstructed workspace: OUTPUT/gcp_marks.txt, check_marks.txt "
-               "and marks.json (run marks them itself)", false, kGeoreferenceOptions | kThreadsOption},
+               "PIX4D's CSV) in the photos of a reconstructed workspace: OUTPUT/gcp_marks.txt, check_marks.txt, "
+               "marks.json and marks.html, the review page to check, move, reject and export marks (run marks "
+               "them itself)", false, kGeoreferenceOptions | kThreadsOption},
       {"georeference", "Georeference and adjust with GPS and control; write OUTPUT/sparse/ and "
                        "OUTPUT/report.json", false, kGeoreferenceOptions | kThreadsOption},
       {"dense", "Dense matching and the deliverables: OUTPUT/cloud.laz (ground-classified), cloud.ply, dsm.tif, "
                 "dtm.tif, contours.gpkg", false, kDenseOptions | kThreadsOption},
       {"ortho", "Orthomosaic through the DSM (or DTM): OUTPUT/ortho.tif, a Cloud-Optimised GeoTIFF", false,
        kOrthoOptions | kThreadsOption},
-      {"report", "Complete report.json (DSM at check points, coverage) and write report.html", false, 0u},
+      {"report", "Complete report.json (DSM at check points, coverage) and write report.html (and marks.html with "
+                 "the adjustment's residuals, where targets were marked)", false, 0u},
   };
   for (const Stage& s : stages) {
     auto a = std::make_shared<RunArgs>();
@@ -437,7 +439,8 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
     const nlohmann::json m = nlohmann::json::parse(ReadTextFile(std::filesystem::path(a.output) / "marks.json"));
     *ctx.out << "control_marked=" << m["control"]["marked"] << "/" << m["control"]["points"]
              << " checks_marked=" << m["checks"]["marked"] << "/" << m["checks"]["points"]
-             << " marks=" << (std::filesystem::path(a.output) / "marks.json").string() << "\n";
+             << " marks=" << (std::filesystem::path(a.output) / "marks.json").string()
+             << " review=" << (std::filesystem::path(a.output) / "marks.html").string() << "\n";
     return 0;
   }
   if (s == "run") {

@@ -1160,6 +1160,7 @@ bool RunReportStage(const PipelineOptions& o) {
   report["timings"] = json::parse(ReadTextFile(o.workspace / "timings.json"));
   WriteTextFileAtomically(o.workspace / "report.json", report.dump(2) + "\n");
   WriteTextFileAtomically(html, RenderHtmlReport(report, previews));
+  WriteReviewPage(o, report);
   return true;
 }
 

@@ -377,7 +377,9 @@ void AddMarking(const PipelineOptions& o, json* report) {
   (*report)["marking"] = {{"file", path.string()},
                           {"control", marks.at("control")},
                           {"checks", marks.at("checks")},
-                          {"search_radius_m", marks.at("search_radius_m")}};
+                          {"search_radius_m", marks.at("search_radius_m")},
+                          {"placed_by", marks.value("placement_by_targets", json()).is_null() ? "gps" : "targets"},
+                          {"review_page", (o.workspace / "marks.html").string()}};
   std::vector<std::string> left_out;
   std::string text;
   for (const json& p : marks.at("points")) {
@@ -392,7 +394,8 @@ void AddMarking(const PipelineOptions& o, json* report) {
   (*report)["warnings"].push_back({{"code", "TARGETS_NOT_MARKED"},
                                    {"message", std::to_string(left_out.size()) +
                                                    " surveyed points were not marked in the photos and are not in "
-                                                   "the adjustment (marks.json says why): " + text},
+                                                   "the adjustment (marks.json says why; marks.html shows them): " +
+                                                   text},
                                    {"items", left_out}});
 }
 

@@ -10,7 +10,7 @@
 //   match        matches.bin, matches.json   verified pairs, overlap summary
 //   reconstruct  reconstruction/ (COLMAP text, arbitrary frame, working px)
 //                + reconstruction.json  per-image registration
-//   mark         gcp_marks.txt, check_marks.txt, marks.json
+//   mark         gcp_marks.txt, check_marks.txt, marks.json, marks.html
 //                (only for control / check files of coordinates alone)
 //   georeference sparse/ (COLMAP text, ENU metres, full-resolution pixels),
 //                georeferenced/ (the same at the working resolution),
@@ -25,6 +25,7 @@
 // timings.json.
 
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -141,9 +142,15 @@ bool RunReconstructStage(const PipelineOptions& options);
 // point and photo: predicted, marked, confidence, or why not). Does
 // nothing (and removes an earlier marking's files) when no file needs it.
 bool RunMarkStage(const PipelineOptions& options);
+// OUTPUT/marks.html, the review page (libphoto/report/review_page.h) of the
+// marks in marks.json: by the mark stage, and again by the report stage with
+// the adjustment's residuals and w-tests (report: report.json's content, or
+// null before the adjustment). Nothing when the workspace has no marks.json.
+void WriteReviewPage(const PipelineOptions& options, const nlohmann::json& report);
 bool NeedsMarking(const PipelineOptions& options);
-// After ingest: throws UsageError when marking is needed and no photo has
-// GPS (before the heavy stages, rather than after the reconstruction).
+// After ingest: throws UsageError when marking is needed, no photo has GPS
+// and the coordinate list's CRS does not place it on the Earth (a LOCAL
+// list): before the heavy stages, rather than after the reconstruction.
 void CheckMarkingPossible(const PipelineOptions& options);
 // The options the stages after marking read: coordinates-only files
 // replaced by the workspace's marks (IoError when not marked yet).

@@ -2,6 +2,8 @@
 #include "libphoto/targets/marking.h"
 
 #include <algorithm>
+#include <array>
+#include <tuple>
 #include <cmath>
 #include <mutex>
 #include <optional>
@@ -34,9 +36,11 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-// The model's frame in ENU from its camera centres and their GPS.
-Similarity GeoreferenceByGps(const SparseModel& model, const std::map<std::string, GpsFix>& gps,
-                             const LocalFrame& frame, int* gps_photos, double* sigma_h) {
+// The model's frame in ENU from its camera centres and their GPS; none when
+// fewer than 3 photos have GPS or their positions lie on a line (one strip
+// flown straight leaves the roll about it open).
+std::optional<Similarity> GeoreferenceByGps(const SparseModel& model, const std::map<std::string, GpsFix>& gps,
+                                            const LocalFrame& frame, int* gps_photos, double* sigma_h) {
   std::vector<Eigen::Vector3d> from, to;
   std::vector<double> sigmas;
   for (const Image& im : model.images) {
@@ -47,15 +51,10 @@ Similarity GeoreferenceByGps(const SparseModel& model, const std::map<std::strin
     sigmas.push_back(it->second.sigma_h_m);
   }
   *gps_photos = static_cast<int>(from.size());
-  if (from.size() < 3) {
-    throw UsageError("marking targets from coordinates alone needs the photos' GPS to predict where the targets are: " +
-                     std::to_string(from.size()) + " of the model's " + std::to_string(model.images.size()) +
-                     " photos have it (at least 3 are needed); mark the targets by hand (gcp_list.txt with pixel "
-                     "columns) for a survey without GPS");
-  }
+  if (from.size() < 3) return std::nullopt;
   *sigma_h = Median(sigmas);
   const auto fit = FitSimilarityRobust(from, to, std::max(1.0, 4.0 * *sigma_h));
-  if (!fit) throw UsageError("the GPS positions of the photos lie on a line: the model cannot be georeferenced by them");
+  if (!fit) return std::nullopt;
   return fit->transform;
 }
 
@@ -160,10 +159,13 @@ std::vector<Cluster> ClusterCandidates(const SparseModel& model, const std::vect
 }
 
 // The photos' detections near every predicted point, each photo read once.
+// everywhere: the detections in whole photos when made already (photos
+// without GPS); those near a prediction are its candidates, and no photo is
+// read again.
 void DetectNearPredictions(const SparseModel& model, const std::filesystem::path& images_dir,
                            const std::vector<Surveyed>& points, const Similarity& to_enu, double radius_m,
-                           const MarkingOptions& options, std::vector<PointMarking>* out,
-                           std::vector<std::vector<Candidate>>* candidates) {
+                           const MarkingOptions& options, const std::vector<Candidate>* everywhere,
+                           std::vector<PointMarking>* out, std::vector<std::vector<Candidate>>* candidates) {
   std::mutex mutex;
   const unsigned threads = ThreadCount(options.num_threads);
   size_t done = 0;
@@ -182,6 +184,19 @@ void DetectNearPredictions(const SparseModel& model, const std::filesystem::path
         continue;
       }
       const double radius_px = radius_m * camera.focal_px() / (c.z() * to_enu.scale);
+      if (everywhere) {
+        std::lock_guard<std::mutex> lock(mutex);
+        TargetMark mark;
+        mark.image = im.name;
+        mark.predicted_px = px;
+        (*out)[p].photos.push_back(mark);
+        for (const Candidate& d : *everywhere) {
+          if (d.image == static_cast<int>(i) && (d.detection.centre_px - px).norm() <= radius_px) {
+            (*candidates)[p].push_back(d);
+          }
+        }
+        continue;
+      }
       if (photo.empty()) {
         photo = cv::imread((images_dir / im.name).string(), cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
         if (photo.empty()) throw IoError((images_dir / im.name).string(), "cannot read the photo to mark targets in it");
@@ -213,6 +228,68 @@ std::string Fixed(double v, int digits) {
   std::snprintf(text, sizeof text, "%.*f", digits, v);
   return text;
 }
+
+// Every target in every registered photo (photos without GPS: nothing
+// predicts where the targets are).
+std::vector<Candidate> DetectEverywhere(const SparseModel& model, const std::filesystem::path& images_dir,
+                                        const MarkingOptions& options) {
+  std::vector<Candidate> all;
+  std::mutex mutex;
+  size_t done = 0;
+  ParallelFor(model.images.size(), ThreadCount(options.num_threads), [&](size_t i) {
+    const Image& im = model.images[i];
+    if (!im.registered) return;
+    const cv::Mat photo =
+        cv::imread((images_dir / im.name).string(), cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
+    if (photo.empty()) throw IoError((images_dir / im.name).string(), "cannot read the photo to mark targets in it");
+    const std::vector<TargetDetection> found = DetectTargets(photo, options.detection);
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const TargetDetection& d : found) all.push_back({static_cast<int>(i), d});
+    ReportProgress(options.progress, 0.5 * static_cast<double>(++done) / model.images.size(),
+                   "looking for targets in the whole of " + im.name);
+  });
+  // The order of the threads must not change the result.
+  std::sort(all.begin(), all.end(), [](const Candidate& a, const Candidate& b) {
+    return std::tie(a.image, a.detection.centre_px.x(), a.detection.centre_px.y()) <
+           std::tie(b.image, b.detection.centre_px.x(), b.detection.centre_px.y());
+  });
+  return all;
+}
+
+// The targets the photos show: detections in at least three photos that one
+// point explains (within max_px in each), the best supported first, each
+// detection in one target. Every pair of detections in two photos is a
+// hypothesis: two rays of different targets can meet by chance, but a third
+// photo does not agree with them.
+std::vector<Cluster> TargetsInPhotos(const SparseModel& model, const std::vector<Candidate>& cands, double max_px) {
+  std::vector<Cluster> hypotheses;
+  for (size_t a = 0; a < cands.size(); ++a) {
+    for (size_t b = a + 1; b < cands.size(); ++b) {
+      if (cands[a].image == cands[b].image) continue;
+      const auto x = Triangulate(model, cands, {static_cast<int>(a), static_cast<int>(b)});
+      if (!x) continue;
+      Cluster c = Support(model, cands, *x, max_px);
+      if (c.members.size() < 3) continue;
+      if (const auto refined = Triangulate(model, cands, c.members)) {
+        Cluster r = Support(model, cands, *refined, max_px);
+        if (r.members.size() >= c.members.size()) c = r;
+      }
+      hypotheses.push_back(c);
+    }
+  }
+  std::stable_sort(hypotheses.begin(), hypotheses.end(), [](const Cluster& x, const Cluster& y) {
+    return x.members.size() != y.members.size() ? x.members.size() > y.members.size() : x.rms_px < y.rms_px;
+  });
+  std::vector<char> taken(cands.size(), 0);
+  std::vector<Cluster> targets;
+  for (const Cluster& c : hypotheses) {
+    if (std::any_of(c.members.begin(), c.members.end(), [&](int m) { return taken[m] != 0; })) continue;
+    for (int m : c.members) taken[m] = 1;
+    targets.push_back(c);
+  }
+  return targets;
+}
+
 
 // A point's status from its clusters; its marks from the chosen one.
 // common_offset: the median offset of the points marked unambiguously
@@ -297,15 +374,147 @@ void Decide(const SparseModel& model, const std::vector<Candidate>& cands, const
 
 }  // namespace
 
+std::optional<ListPlacement> PlaceListOnTargets(const std::vector<Eigen::Vector3d>& targets,
+                                                const std::vector<Eigen::Vector3d>& surveyed, std::string* why) {
+  constexpr double kToleranceM = 0.5;     // a free network's distortion across a block, and the targets' size
+  constexpr double kSideRatioSpread = 0.05;  // the model's scale along three sides agrees within 5 %
+  if (targets.size() < 3 || surveyed.size() < 3) {
+    *why = std::to_string(targets.size()) + " targets found in the photos (seen in 3 photos or more) for " +
+           std::to_string(surveyed.size()) + " surveyed points: at least 3 of each are needed to place the list "
+           "without GPS";
+    return std::nullopt;
+  }
+  // Assignment (target per surveyed point, -1 none) and fit under a similarity.
+  const auto evaluate = [&](const Similarity& sim, std::vector<int>* assign, double* rms) {
+    int n = 0;
+    double sq = 0.0;
+    assign->assign(surveyed.size(), -1);
+    for (size_t s = 0; s < surveyed.size(); ++s) {
+      double best = kToleranceM;
+      for (size_t t = 0; t < targets.size(); ++t) {
+        const double d = (sim.Apply(targets[t]) - surveyed[s]).norm();
+        if (d < best) best = d, (*assign)[s] = static_cast<int>(t);
+      }
+      if ((*assign)[s] >= 0) ++n, sq += best * best;
+    }
+    *rms = n ? std::sqrt(sq / n) : 0.0;
+    return n;
+  };
+  std::vector<std::array<int, 3>> triangles;
+  for (int i = 0; i < static_cast<int>(surveyed.size()); ++i) {
+    for (int j = i + 1; j < static_cast<int>(surveyed.size()); ++j) {
+      for (int k = j + 1; k < static_cast<int>(surveyed.size()); ++k) triangles.push_back({i, j, k});
+    }
+  }
+  const auto area = [&](const std::array<int, 3>& t) {
+    return (surveyed[t[1]] - surveyed[t[0]]).cross(surveyed[t[2]] - surveyed[t[0]]).norm();
+  };
+  std::sort(triangles.begin(), triangles.end(), [&](const auto& x, const auto& y) { return area(x) > area(y); });
+  triangles.resize(std::min<size_t>(triangles.size(), 40));
+  std::map<std::vector<int>, std::pair<int, double>> fits;  // assignment -> (points placed, rms)
+  std::optional<ListPlacement> best;
+  std::vector<int> best_assign;
+  const int nt = static_cast<int>(targets.size());
+  for (const auto& tri : triangles) {
+    if (area(tri) < 1.0) continue;  // points on a line place nothing
+    const double d01 = (surveyed[tri[0]] - surveyed[tri[1]]).norm(), d12 = (surveyed[tri[1]] - surveyed[tri[2]]).norm(),
+                 d02 = (surveyed[tri[0]] - surveyed[tri[2]]).norm();
+    for (int a = 0; a < nt; ++a) {
+      for (int b = 0; b < nt; ++b) {
+        if (b == a) continue;
+        const double s01 = d01 / std::max(1e-12, (targets[a] - targets[b]).norm());
+        for (int c = 0; c < nt; ++c) {
+          if (c == a || c == b) continue;
+          const double s12 = d12 / std::max(1e-12, (targets[b] - targets[c]).norm());
+          const double s02 = d02 / std::max(1e-12, (targets[a] - targets[c]).norm());
+          const double lo = std::min({s01, s12, s02}), hi = std::max({s01, s12, s02});
+          if (hi > (1.0 + kSideRatioSpread) * lo) continue;
+          auto sim = FitSimilarity({targets[a], targets[b], targets[c]}, {surveyed[tri[0]], surveyed[tri[1]], surveyed[tri[2]]});
+          if (!sim) continue;
+          std::vector<int> assign;
+          double rms = 0.0;
+          int n = evaluate(*sim, &assign, &rms);
+          // Refit on every point placed, and place again.
+          for (int round = 0; round < 2 && n >= 3; ++round) {
+            std::vector<Eigen::Vector3d> from, to;
+            for (size_t s = 0; s < surveyed.size(); ++s) {
+              if (assign[s] >= 0) from.push_back(targets[assign[s]]), to.push_back(surveyed[s]);
+            }
+            const auto refit = FitSimilarity(from, to);
+            if (!refit) break;
+            sim = refit;
+            n = evaluate(*sim, &assign, &rms);
+          }
+          if (n < 3) continue;
+          auto& f = fits[assign];
+          if (f.first == 0 || rms < f.second) f = {n, rms};
+          if (!best || n > best->placed || (n == best->placed && rms < best->rms_m)) {
+            best = ListPlacement{*sim, n, rms};
+            best_assign = assign;
+          }
+        }
+      }
+    }
+  }
+  if (!best) {
+    *why = "no three of the " + std::to_string(targets.size()) + " targets found in the photos form a triangle "
+           "like any three surveyed points (within 5 % in scale and " + Fixed(kToleranceM, 1) + " m)";
+    return std::nullopt;
+  }
+  for (const auto& [assign, f] : fits) {
+    if (f.first < best->placed) continue;
+    int differ = 0;
+    for (size_t k = 0; k < assign.size(); ++k) differ += assign[k] != best_assign[k];
+    if (differ < 2) continue;  // one point between two targets: its own decision, later
+    if (f.second < 3.0 * best->rms_m + 0.05) {
+      *why = "the targets found in the photos fit the surveyed list in two ways (" + std::to_string(best->placed) +
+             " points each, " + Fixed(best->rms_m, 3) + " and " + Fixed(f.second, 3) +
+             " m RMS): a symmetric layout, which GPS or a hand mark would settle";
+      return std::nullopt;
+    }
+  }
+  return best;
+}
+
+namespace {
+
+// The model's frame placed in ENU from the photos alone: every target in
+// every photo, triangulated, and the coordinate list placed on them. false
+// (every point UNPLACED, with the reason) when it cannot be.
+bool GeoreferenceByTargets(const SparseModel& model, const std::filesystem::path& images_dir,
+                           const std::vector<Surveyed>& points, const MarkingOptions& options, MarkingResult* result,
+                           std::vector<Candidate>* everywhere) {
+  *everywhere = DetectEverywhere(model, images_dir, options);
+  const std::vector<Cluster> found = TargetsInPhotos(model, *everywhere, options.max_reprojection_px);
+  std::vector<Eigen::Vector3d> targets, surveyed;
+  for (const Cluster& c : found) targets.push_back(c.position);
+  for (const Surveyed& p : points) {
+    if (!p.point->horizontal_only) surveyed.push_back(p.enu);
+  }
+  result->targets_found = static_cast<int>(targets.size());
+  std::string why;
+  const std::optional<ListPlacement> placed = PlaceListOnTargets(targets, surveyed, &why);
+  if (!placed) {
+    for (PointMarking& p : result->points) {
+      p.status = "UNPLACED";
+      p.reason = "the photos have no GPS, and " + why;
+    }
+    return false;
+  }
+  result->model_to_enu = placed->model_to_enu;
+  result->placement_rms_m = placed->rms_m;
+  result->placed_points = placed->placed;
+  result->search_radius_m = options.search_radius_m > 0 ? options.search_radius_m : std::max(0.5, 4.0 * placed->rms_m);
+  return true;
+}
+
+}  // namespace
+
 MarkingResult MarkControl(const SparseModel& model, const std::filesystem::path& images_dir,
                           const std::map<std::string, GpsFix>& gps, const Geodetic& enu_origin, const GcpFile& control,
                           const GcpFile* checks, const MarkingOptions& options) {
   const LocalFrame frame(enu_origin);
   MarkingResult result;
-  double sigma_h = 0.0;
-  result.model_to_enu = GeoreferenceByGps(model, gps, frame, &result.gps_photos, &sigma_h);
-  result.search_radius_m = options.search_radius_m > 0 ? options.search_radius_m : std::max(1.5, 2.0 * sigma_h);
-  const Similarity to_model = result.model_to_enu.Inverse();
   std::vector<Surveyed> points;
   for (const GcpFile* file : {&control, checks}) {
     if (!file) continue;
@@ -317,8 +526,6 @@ MarkingResult MarkControl(const SparseModel& model, const std::filesystem::path&
       Eigen::Vector3d xyz = g.xyz;
       if (g.horizontal_only) xyz.z() = 0.0;
       s.enu = frame.EnuFromGeodetic(crs.ToGeodetic(xyz));
-      if (g.horizontal_only) s.enu.z() = HeightNear(model, result.model_to_enu, s.enu.head<2>());
-      s.model = to_model.Apply(s.enu);
       points.push_back(s);
       PointMarking p;
       p.name = g.name;
@@ -326,9 +533,24 @@ MarkingResult MarkControl(const SparseModel& model, const std::filesystem::path&
       result.points.push_back(p);
     }
   }
+  std::vector<Candidate> everywhere;
+  double sigma_h = 0.0;
+  if (const auto by_gps = GeoreferenceByGps(model, gps, frame, &result.gps_photos, &sigma_h)) {
+    result.method = "gps";
+    result.model_to_enu = *by_gps;
+    result.search_radius_m = options.search_radius_m > 0 ? options.search_radius_m : std::max(1.5, 2.0 * sigma_h);
+  } else {
+    result.method = "targets";
+    if (!GeoreferenceByTargets(model, images_dir, points, options, &result, &everywhere)) return result;
+  }
+  const Similarity to_model = result.model_to_enu.Inverse();
+  for (Surveyed& s : points) {
+    if (s.point->horizontal_only) s.enu.z() = HeightNear(model, result.model_to_enu, s.enu.head<2>());
+    s.model = to_model.Apply(s.enu);
+  }
   std::vector<std::vector<Candidate>> candidates(points.size());
   DetectNearPredictions(model, images_dir, points, result.model_to_enu, result.search_radius_m, options,
-                        &result.points, &candidates);
+                        result.method == "targets" ? &everywhere : nullptr, &result.points, &candidates);
   std::vector<std::vector<Cluster>> clusters(points.size());
   for (size_t k = 0; k < points.size(); ++k) {
     PointMarking& p = result.points[k];

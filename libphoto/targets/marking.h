@@ -20,12 +20,15 @@
 //                   neither clearly at the GPS georeferencing's offset that
 //                   the points marked unambiguously show;
 //   SHARED_TARGET   its target is another point's too (two names for one
-//                   target, or two coordinates for one).
+//                   target, or two coordinates for one);
+//   UNPLACED        photos without GPS, and the coordinate list could not be
+//                   placed on the targets found in them (see MarkControl).
 // A point seen in one photo only is marked when one target is found there
 // (SINGLE_PHOTO: nothing confirms it).
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -78,15 +81,52 @@ struct PointMarking {
 struct MarkingResult {
   std::vector<PointMarking> points;  // control, then checks, in file order
   GcpFile control_marks, check_marks;  // the marked points, gcp_list.txt format
+  // "gps": the model placed by the photos' GPS; "targets": by the targets
+  // found in the photos, with the coordinate list placed on them.
+  std::string method;
   Similarity model_to_enu;
   double search_radius_m = 0.0;
   int gps_photos = 0;
+  // method "targets": targets found in 3 photos or more, surveyed points
+  // placed on one, and the placement's RMS (metres).
+  int targets_found = 0;
+  int placed_points = 0;
+  double placement_rms_m = 0.0;
 };
 
-// model: registered photos with full-resolution cameras; gps by photo name
-// (at least 3 of the model's photos); enu_origin: the frame GPS and
-// control are compared in. Throws UsageError when the photos have no GPS
-// (the correspondence from the photos alone is not built).
+// A coordinate list placed on targets found in the photos (photos without
+// GPS): the similarity from the model's frame to ENU under which the most
+// surveyed points sit on a target (within 0.5 m), found from the 40 widest
+// triangles of surveyed points against every triangle of targets whose sides
+// have the same ratios (within 5 %), each refitted on every point it
+// places. None, and *why says why, when there are fewer than 3 of either,
+// no triangle is alike, or the layout is ambiguous: another assignment of
+// two or more points to targets fits as many points about as well (within
+// 3 times the RMS and 5 cm; a symmetric layout, which GPS or a hand mark
+// settles).
+struct ListPlacement {
+  Similarity model_to_enu;
+  int placed = 0;  // surveyed points on a target
+  double rms_m = 0.0;
+};
+std::optional<ListPlacement> PlaceListOnTargets(const std::vector<Eigen::Vector3d>& targets_in_model,
+                                                const std::vector<Eigen::Vector3d>& surveyed_in_enu,
+                                                std::string* why);
+
+// model: registered photos with full-resolution cameras; gps by photo name;
+// enu_origin: the frame GPS and control are compared in (any point near the
+// survey when the photos have no GPS).
+//
+// With GPS in 3 photos or more, the model is placed by it. Without, it is
+// placed from the photos alone: every target in every photo, joined into
+// targets seen by 3 photos or more (triangulated within max_reprojection_px),
+// and the coordinate list placed on them by the similarity under which the
+// most surveyed points sit on a target (within 0.5 m; found from triangles of
+// surveyed points against triangles of targets with the same side ratios).
+// A list that cannot be placed (fewer than 3 targets, no triangle alike, or
+// a symmetric layout that fits two ways) leaves every point UNPLACED, with
+// the reason. Once placed, each point is marked as with GPS, its search
+// radius 4 times the placement's RMS (at least 0.5 m).
 MarkingResult MarkControl(const SparseModel& model, const std::filesystem::path& images_dir,
                           const std::map<std::string, GpsFix>& gps, const Geodetic& enu_origin, const GcpFile& control,
                           const GcpFile* checks, const MarkingOptions& options);
