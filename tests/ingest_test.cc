@@ -390,5 +390,40 @@ TEST(IngestStage, TypedRecordRoundTripsAndRefusesCorruptFiles) {
   ExpectThrowWith<InvalidArgument>([&] { o.Check(); }, "--gps-sigma-v: expected a positive number");
 }
 
+// A photo without GPS among photos with it is named; a set flown without
+// GPS is one warning, not one per photo.
+TEST(IngestStage, PhotosWithoutGpsAreOneWarningWhenNoneHasIt) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "some");
+  std::filesystem::create_directories(dir / "none");
+  const cv::Mat image(300, 400, CV_8UC3, cv::Scalar(40, 120, 200));
+  const std::map<std::string, std::string> gps = {
+      {"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"}, {"EXIF_FocalLength", "(3.61)"},
+      {"EXIF_GPSLatitude", ExifDms(46.842609)}, {"EXIF_GPSLatitudeRef", "N"},
+      {"EXIF_GPSLongitude", ExifDms(91.994561)}, {"EXIF_GPSLongitudeRef", "W"},
+      {"EXIF_GPSAltitude", "(198.309)"}, {"EXIF_GPSAltitudeRef", "0x00"}};
+  const std::map<std::string, std::string> no_gps = {
+      {"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"}, {"EXIF_FocalLength", "(3.61)"}};
+  WriteJpegWithExif(dir / "some" / "a.jpg", image, gps);
+  for (const char* name : {"b.jpg", "c.jpg"}) {
+    WriteJpegWithExif(dir / "some" / name, image, no_gps);
+    WriteJpegWithExif(dir / "none" / name, image, no_gps);
+  }
+  WriteJpegWithExif(dir / "none" / "d.jpg", image, no_gps);
+  IngestOptions o;
+  o.images_dir = dir / "some";
+  const IngestRecord some = IngestSurveyImages(o, nullptr);
+  const auto has = [](const IngestRecord& r, const std::string& w) {
+    return std::find(r.warnings.begin(), r.warnings.end(), w) != r.warnings.end();
+  };
+  EXPECT_TRUE(has(some, "b.jpg: no GPS position (EXIF or CSV)"));
+  EXPECT_TRUE(has(some, "c.jpg: no GPS position (EXIF or CSV)"));
+  o.images_dir = dir / "none";
+  const IngestRecord none = IngestSurveyImages(o, nullptr);
+  EXPECT_EQ(none.warnings.size(), 1u);
+  EXPECT_TRUE(has(none, "none of the 3 photos has a GPS position (EXIF or CSV): the survey is placed by its control "
+                        "alone, or not at all"));
+}
+
 }  // namespace
 }  // namespace aerotri

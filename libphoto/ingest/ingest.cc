@@ -216,6 +216,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
   };
 
   std::vector<std::pair<size_t, ImageMetadata>> anonymous;
+  std::vector<std::string> without_gps;
   for (size_t k = 0; k < files.size(); ++k) {
     IngestedImage im;
     im.name = files[k].filename().string();
@@ -251,7 +252,7 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
     if (im.gps) {
       ++r.images_with_gps;
     } else {
-      r.warnings.push_back(im.name + ": no GPS position (EXIF or CSV)");
+      without_gps.push_back(im.name);
     }
     // A photo that says nothing of its camera is placed once every photo is read.
     if (m.make.empty() && m.model.empty() && !m.focal_mm && !m.focal_35mm) {
@@ -264,6 +265,14 @@ IngestRecord IngestSurveyImages(const IngestOptions& o, const ProgressCallback& 
     }
     r.images.push_back(im);
     ReportProgress(progress, static_cast<double>(k + 1) / files.size(), im.name);
+  }
+  // A set flown without GPS is one fact, not one per photo.
+  if (r.images_with_gps == 0 && without_gps.size() > 1) {
+    r.warnings.push_back("none of the " + std::to_string(without_gps.size()) +
+                         " photos has a GPS position (EXIF or CSV): the survey is placed by its control alone, or "
+                         "not at all");
+  } else {
+    for (const std::string& name : without_gps) r.warnings.push_back(name + ": no GPS position (EXIF or CSV)");
   }
   for (const auto& [index, m] : anonymous) {
     IngestedImage& im = r.images[index];
