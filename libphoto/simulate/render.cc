@@ -183,14 +183,25 @@ Eigen::Vector3d SceneAlbedoFromAbove(double e, double n, const std::vector<Groun
 
 namespace {
 
+// Whether (east, north) lies on a target or within a tenth of its side of it.
+bool NearTarget(double e, double n, const std::vector<GroundTarget>& targets) {
+  for (const GroundTarget& t : targets) {
+    const double reach = 0.6 * t.size_m;
+    if (std::abs(e - t.east_north.x()) <= reach && std::abs(n - t.east_north.y()) <= reach) return true;
+  }
+  return false;
+}
+
 // The colour where a ray first meets the scene (terrain or a building), or
-// nothing when it misses.
+// nothing when it misses; *near_target: the ray meets the ground near a
+// target (where the pixel is sampled finer).
 std::optional<Eigen::Vector3d> TraceScene(const Eigen::Vector3d& c, const Eigen::Vector3d& d,
-                                          const RenderOptions& o) {
+                                          const RenderOptions& o, bool* near_target = nullptr) {
   const auto ground = IntersectTerrain(c, d, o.relief_m);
   double t_best = ground ? (*ground - c).dot(d) / d.squaredNorm() : std::numeric_limits<double>::infinity();
   std::optional<Eigen::Vector3d> colour;
   if (ground) colour = GroundAlbedo(ground->x(), ground->y(), o.targets, o.cover);
+  if (ground && near_target && NearTarget(ground->x(), ground->y(), o.targets)) *near_target = true;
   for (const BoxBuilding& b : o.buildings) {
     const double roof = b.RoofHeight(o.relief_m);
     const Eigen::Vector3d lo(b.centre.x() - b.half_size.x(), b.centre.y() - b.half_size.y(), roof - b.height_m - 50.0);
@@ -229,15 +240,26 @@ cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions&
       for (int x = 0; x < camera.width; ++x) {
         Eigen::Vector3d sum = Eigen::Vector3d::Zero();
         int n = 0;
-        for (int sy = 0; sy < ss; ++sy) {
-          for (int sx = 0; sx < ss; ++sx) {
-            const Eigen::Vector2d xy(x - 0.5 + (sx + 0.5) / ss, y - 0.5 + (sy + 0.5) / ss);
-            const auto ray = camera.RayFromImage(xy);
-            if (!ray) continue;
-            const auto colour = TraceScene(pose.centre_in_world, world_from_cam * *ray, options);
-            if (!colour) continue;
-            sum += *colour;
-            ++n;
+        bool near_target = false;
+        // A pixel near a target is sampled 8 x 8: with 2 x 2, an edge along a
+        // pixel row has three shades, and the targets' true centres (the
+        // marking tests' truth) would be rendered up to a quarter pixel off.
+        for (int pass = 0, grid = ss; pass < 2; ++pass, grid = std::max(ss, options.target_supersample)) {
+          if (pass == 1) {
+            if (!near_target || grid == ss) break;
+            sum.setZero();
+            n = 0;
+          }
+          for (int sy = 0; sy < grid; ++sy) {
+            for (int sx = 0; sx < grid; ++sx) {
+              const Eigen::Vector2d xy(x - 0.5 + (sx + 0.5) / grid, y - 0.5 + (sy + 0.5) / grid);
+              const auto ray = camera.RayFromImage(xy);
+              if (!ray) continue;
+              const auto colour = TraceScene(pose.centre_in_world, world_from_cam * *ray, options, &near_target);
+              if (!colour) continue;
+              sum += *colour;
+              ++n;
+            }
           }
         }
         const Eigen::Vector3d rgb = n > 0 ? Eigen::Vector3d(sum / n) : Eigen::Vector3d(0.6, 0.7, 0.9);

@@ -55,6 +55,7 @@ struct RenderOptions {
   std::vector<BoxBuilding> buildings;
   GroundCover cover = GroundCover::kMixed;
   int supersample = 2;       // per axis
+  int target_supersample = 8;  // per axis, for pixels that see a target or its surroundings
   double noise_dn = 1.5;     // sensor noise (digital numbers)
   std::uint32_t seed = 1;
   int num_threads = 0;       // 0: all cores

@@ -193,7 +193,12 @@ std::optional<CrossTarget> CrossOf(const cv::Mat& gray, const cv::Mat& dark, con
     if (bar1->Distance(p) > 0.75 * width) rest.push_back(p);
   }
   const auto bar2 = RansacLine(rest, 0.5 * width, 2.0 * width, &bar1->dir, 45.0, &in2);
-  if (!bar2 || in2 < 2.0 * width * width) return std::nullopt;
+  // The second bar reaches at least two bar widths past the first (both arms
+  // together). The distance transform counts to the first pixel outside, so
+  // a bar is about one pixel narrower than `width` says: at 5 px bars the
+  // difference is the one between finding a cross and missing it.
+  const double bar_width = std::max(1.0, width - 1.0);
+  if (!bar2 || in2 < 2.0 * bar_width * bar_width) return std::nullopt;
   Line lines[2] = {*bar1, *bar2};
   Eigen::Vector2d centre = Intersect(lines[0], lines[1]);
   // Each bar's extent from the crossing: its inliers' farthest reach.

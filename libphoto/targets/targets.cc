@@ -181,9 +181,17 @@ std::vector<TargetDetection> DetectCheckerTargets(const cv::Mat& gray8, const Ta
     for (const TargetDetection& d : found) near = near || (d.centre_px - c).norm() < 0.5 * std::max(d.size_px, 4.0);
     if (near) continue;
     // Förstner's centre over the checker's own squares (not its frame).
-    const int half = static_cast<int>(std::clamp(0.6 * size, 2.0, 25.0));
-    Eigen::Vector2d centre = refine(c, half);
-    if ((centre - c).norm() > 2.0) continue;
+    // The rings pass through a white frame as well as the squares, so the
+    // size can be the frame's: a window that reaches past the squares'
+    // outer corners can carry the iteration to one of them (20 px off, seen
+    // on level, unturned checkers), so the window shrinks until it stays.
+    Eigen::Vector2d centre = c;
+    bool stayed = false;
+    for (int half = static_cast<int>(std::clamp(0.6 * size, 2.0, 25.0)); half >= 2 && !stayed; half = half * 2 / 3) {
+      centre = refine(c, half);
+      stayed = (centre - c).norm() <= 2.0;
+    }
+    if (!stayed) continue;
     if (const auto edges = CentreFromEdges(light, centre, size); edges && (*edges - centre).norm() < 1.0) {
       centre = *edges;
     }
