@@ -18,6 +18,9 @@
 namespace aerotri {
 namespace {
 
+constexpr const char* kNotSeen =
+    "no photo's footprint holds it (surveyed outside the area flown, or a wrong coordinate)";
+
 struct Candidate {
   int image = 0;  // index into the model's images
   TargetDetection detection;
@@ -178,17 +181,24 @@ void DetectNearPredictions(const SparseModel& model, const std::filesystem::path
       const Eigen::Vector3d c = im.pose.CamFromWorld(points[p].model);
       if (c.z() <= 0) continue;
       const Eigen::Vector2d px = camera.ImageFromCamera(c);
-      const double margin = 2.0;
-      if (px.x() < margin || px.y() < margin || px.x() > camera.width - 1 - margin ||
-          px.y() > camera.height - 1 - margin) {
-        continue;
-      }
       const double radius_px = radius_m * camera.focal_px() / (c.z() * to_enu.scale);
+      // The prediction carries the georeferencing's offset (metres with
+      // GPS): a target near the photo's edge can be predicted just outside
+      // it, so a photo is searched wherever its search window meets it.
+      // Photos whose prediction lies outside and that show no target are
+      // dropped once the points are decided (DropUnseenOutside).
+      const auto within = [&](double margin) {
+        return px.x() >= margin && px.y() >= margin && px.x() <= camera.width - 1 - margin &&
+               px.y() <= camera.height - 1 - margin;
+      };
+      const bool inside = within(2.0);
+      if (!within(everywhere ? 2.0 : 2.0 - radius_px)) continue;
       if (everywhere) {
         std::lock_guard<std::mutex> lock(mutex);
         TargetMark mark;
         mark.image = im.name;
         mark.predicted_px = px;
+        mark.predicted_inside = inside;
         (*out)[p].photos.push_back(mark);
         for (const Candidate& d : *everywhere) {
           if (d.image == static_cast<int>(i) && (d.detection.centre_px - px).norm() <= radius_px) {
@@ -211,6 +221,7 @@ void DetectNearPredictions(const SparseModel& model, const std::filesystem::path
       TargetMark mark;
       mark.image = im.name;
       mark.predicted_px = px;
+      mark.predicted_inside = inside;
       (*out)[p].photos.push_back(mark);
       for (TargetDetection& d : found) {
         d.centre_px += Eigen::Vector2d(window.x, window.y);
@@ -221,6 +232,21 @@ void DetectNearPredictions(const SparseModel& model, const std::filesystem::path
     ReportProgress(options.progress, static_cast<double>(++done) / model.images.size(),
                    "looking for targets in " + im.name);
   });
+}
+
+// The photos searched because their window met them, whose prediction lies
+// outside the photo and which show no mark of the point: not photos that
+// see it.
+void DropUnseenOutside(std::vector<PointMarking>* points) {
+  for (PointMarking& p : *points) {
+    p.photos.erase(std::remove_if(p.photos.begin(), p.photos.end(),
+                                  [](const TargetMark& m) { return !m.detected && !m.predicted_inside; }),
+                   p.photos.end());
+    if (p.photos.empty() && p.status == "NOT_FOUND") {
+      p.status = "NOT_SEEN";
+      p.reason = kNotSeen;
+    }
+  }
 }
 
 std::string Fixed(double v, int digits) {
@@ -299,7 +325,7 @@ void Decide(const SparseModel& model, const std::vector<Candidate>& cands, const
             PointMarking* p) {
   if (p->photos.empty()) {
     p->status = "NOT_SEEN";
-    p->reason = "no photo's footprint holds it (surveyed outside the area flown, or a wrong coordinate)";
+    p->reason = kNotSeen;
     return;
   }
   const auto mark_from = [&](const std::vector<int>& members) {
@@ -315,7 +341,9 @@ void Decide(const SparseModel& model, const std::vector<Candidate>& cands, const
   };
   if (clusters.empty()) {
     // One photo: its one detection, unconfirmed.
-    if (p->photos.size() == 1 && cands.size() == 1) {
+    const auto inside = std::count_if(p->photos.begin(), p->photos.end(),
+                                      [](const TargetMark& m) { return m.predicted_inside; });
+    if (inside <= 1 && cands.size() == 1) {
       p->status = "SINGLE_PHOTO";
       p->reason = "seen in one photo only: its mark has nothing to confirm it";
       mark_from({0});
@@ -323,7 +351,7 @@ void Decide(const SparseModel& model, const std::vector<Candidate>& cands, const
     }
     p->status = "NOT_FOUND";
     p->reason = "no target within " + Fixed(radius_m, 1) + " m of its surveyed position in the " +
-                std::to_string(p->photos.size()) + " photos that should see it" +
+                std::to_string(inside) + " photos that should see it" +
                 (cands.empty() ? "" : " (" + std::to_string(cands.size()) + " detections that no two photos agree on)");
     return;
   }
@@ -594,6 +622,7 @@ MarkingResult MarkControl(const SparseModel& model, const std::filesystem::path&
       pa.status = pb.status = "SHARED_TARGET";
     }
   }
+  DropUnseenOutside(&result.points);
   for (size_t k = 0; k < points.size(); ++k) {
     const PointMarking& p = result.points[k];
     if (!p.Marked()) continue;

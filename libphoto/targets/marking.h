@@ -58,6 +58,7 @@ struct MarkingOptions {
 struct TargetMark {
   std::string image;
   Eigen::Vector2d predicted_px = Eigen::Vector2d::Zero();  // from the surveyed position
+  bool predicted_inside = true;  // else searched because the window met the photo
   bool detected = false;                                    // a mark in this photo
   Eigen::Vector2d xy_px = Eigen::Vector2d::Zero();
   double confidence = 0.0;
