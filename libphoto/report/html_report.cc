@@ -831,6 +831,8 @@ std::string Timings(const json& r) {
 
 }  // namespace
 
+std::string HtmlEscape(const std::string& text) { return Escape(text); }
+
 std::string Base64(const std::string& bytes) {
   static const char* kTable = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;

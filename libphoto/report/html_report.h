@@ -30,6 +30,8 @@ std::string RenderHtmlReport(const nlohmann::json& report, const std::string& ds
 std::string RenderHtmlReport(const nlohmann::json& report, const std::map<std::string, std::string>& previews);
 
 std::string Base64(const std::string& bytes);
+// Text for HTML: < > & " escaped.
+std::string HtmlEscape(const std::string& text);
 
 // The DSM preview's elevation colours, t = 0 (low) to 1 (high): blue, green,
 // yellow, brown, white. The preview and its legend both use it.

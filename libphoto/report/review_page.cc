@@ -21,20 +21,6 @@ using json = nlohmann::json;
 extern const char* const kReviewStyle;
 extern const char* const kReviewScript;
 
-std::string EscapeHtml(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
-
 // JSON inside <script>: "</" would end the element.
 std::string ScriptSafe(const std::string& s) {
   std::string out;
@@ -137,8 +123,8 @@ std::string RenderReviewPage(const ReviewPageInput& input, const std::function<c
   html += "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>\n";
   html += "<meta http-equiv='Content-Security-Policy' content=\"default-src 'none'; img-src data: blob:; "
           "style-src 'unsafe-inline'; script-src 'unsafe-inline'\">\n";
-  html += "<title>" + EscapeHtml(title) + "</title>\n<style>" + std::string(kReviewStyle) + "</style></head>\n<body>\n";
-  html += "<header><h1>" + EscapeHtml(title) + "</h1>\n";
+  html += "<title>" + HtmlEscape(title) + "</title>\n<style>" + std::string(kReviewStyle) + "</style></head>\n<body>\n";
+  html += "<header><h1>" + HtmlEscape(title) + "</h1>\n";
   html += "<p class='help'>Each chip is a photo where the point was predicted: <span class='pred-key'>+</span> the "
           "point predicted through the georeferenced model (by the photos' GPS, or by the targets found in "
           "them), <span class='mark-key'>&#9675;</span> the mark. Drag a mark "

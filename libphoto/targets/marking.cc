@@ -121,6 +121,23 @@ std::optional<Eigen::Vector3d> Triangulate(const SparseModel& model, const std::
   return r->position;
 }
 
+// The cluster that the rays of candidates a and b (in two photos) start:
+// the detections their point explains, refined once on all of them; none
+// when the rays do not meet or fewer than min_members photos agree.
+std::optional<Cluster> ClusterFromPair(const SparseModel& model, const std::vector<Candidate>& cands, size_t a,
+                                       size_t b, double max_px, size_t min_members) {
+  if (cands[a].image == cands[b].image) return std::nullopt;
+  const auto x = Triangulate(model, cands, {static_cast<int>(a), static_cast<int>(b)});
+  if (!x) return std::nullopt;
+  Cluster c = Support(model, cands, *x, max_px);
+  if (c.members.size() < min_members) return std::nullopt;
+  if (const auto refined = Triangulate(model, cands, c.members)) {
+    Cluster r = Support(model, cands, *refined, max_px);
+    if (r.members.size() >= c.members.size()) c = r;
+  }
+  return c;
+}
+
 // The targets the detections of one point show: clusters of detections in
 // different photos that one 3D point explains, the best supported first;
 // a cluster's members are taken out before the next is sought.
@@ -136,15 +153,9 @@ std::vector<Cluster> ClusterCandidates(const SparseModel& model, const std::vect
     std::optional<Cluster> best;
     for (size_t a = 0; a < left.size(); ++a) {
       for (size_t b = a + 1; b < left.size(); ++b) {
-        if (left[a].image == left[b].image) continue;
-        const auto x = Triangulate(model, left, {static_cast<int>(a), static_cast<int>(b)});
-        if (!x) continue;
-        Cluster c = Support(model, left, *x, max_px);
-        if (c.members.size() < 2) continue;
-        if (const auto refined = Triangulate(model, left, c.members)) {
-          Cluster r = Support(model, left, *refined, max_px);
-          if (r.members.size() >= c.members.size()) c = r;
-        }
+        const std::optional<Cluster> found = ClusterFromPair(model, left, a, b, max_px, 2);
+        if (!found) continue;
+        const Cluster& c = *found;
         if (!best || c.members.size() > best->members.size() ||
             (c.members.size() == best->members.size() && c.rms_px < best->rms_px)) {
           best = c;
@@ -291,16 +302,7 @@ std::vector<Cluster> TargetsInPhotos(const SparseModel& model, const std::vector
   std::vector<Cluster> hypotheses;
   for (size_t a = 0; a < cands.size(); ++a) {
     for (size_t b = a + 1; b < cands.size(); ++b) {
-      if (cands[a].image == cands[b].image) continue;
-      const auto x = Triangulate(model, cands, {static_cast<int>(a), static_cast<int>(b)});
-      if (!x) continue;
-      Cluster c = Support(model, cands, *x, max_px);
-      if (c.members.size() < 3) continue;
-      if (const auto refined = Triangulate(model, cands, c.members)) {
-        Cluster r = Support(model, cands, *refined, max_px);
-        if (r.members.size() >= c.members.size()) c = r;
-      }
-      hypotheses.push_back(c);
+      if (std::optional<Cluster> c = ClusterFromPair(model, cands, a, b, max_px, 3)) hypotheses.push_back(*c);
     }
   }
   std::stable_sort(hypotheses.begin(), hypotheses.end(), [](const Cluster& x, const Cluster& y) {
