@@ -204,40 +204,33 @@ void DetectNearPredictions(const SparseModel& model, const std::filesystem::path
       };
       const bool inside = within(2.0);
       if (!within(everywhere ? 2.0 : 2.0 - radius_px)) continue;
+      std::vector<Candidate> near;
       if (everywhere) {
-        std::lock_guard<std::mutex> lock(mutex);
-        TargetMark mark;
-        mark.image = im.name;
-        mark.predicted_px = px;
-        mark.predicted_inside = inside;
-        (*out)[p].photos.push_back(mark);
         for (const Candidate& d : *everywhere) {
-          if (d.image == static_cast<int>(i) && (d.detection.centre_px - px).norm() <= radius_px) {
-            (*candidates)[p].push_back(d);
-          }
+          if (d.image == static_cast<int>(i) && (d.detection.centre_px - px).norm() <= radius_px) near.push_back(d);
         }
-        continue;
+      } else {
+        if (photo.empty()) {
+          photo = cv::imread((images_dir / im.name).string(), cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
+          if (photo.empty()) throw IoError((images_dir / im.name).string(), "cannot read the photo to mark targets in it");
+        }
+        const cv::Rect window = cv::Rect(static_cast<int>(px.x() - radius_px), static_cast<int>(px.y() - radius_px),
+                                         static_cast<int>(2 * radius_px + 1), static_cast<int>(2 * radius_px + 1)) &
+                                cv::Rect(0, 0, photo.cols, photo.rows);
+        TargetDetectionOptions detection = options.detection;
+        detection.max_radius_px = std::min(detection.max_radius_px, 0.5 * std::min(window.width, window.height));
+        for (TargetDetection& d : DetectTargets(photo(window), detection)) {
+          d.centre_px += Eigen::Vector2d(window.x, window.y);
+          near.push_back({static_cast<int>(i), d});
+        }
       }
-      if (photo.empty()) {
-        photo = cv::imread((images_dir / im.name).string(), cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
-        if (photo.empty()) throw IoError((images_dir / im.name).string(), "cannot read the photo to mark targets in it");
-      }
-      const cv::Rect window = cv::Rect(static_cast<int>(px.x() - radius_px), static_cast<int>(px.y() - radius_px),
-                                       static_cast<int>(2 * radius_px + 1), static_cast<int>(2 * radius_px + 1)) &
-                              cv::Rect(0, 0, photo.cols, photo.rows);
-      TargetDetectionOptions detection = options.detection;
-      detection.max_radius_px = std::min(detection.max_radius_px, 0.5 * std::min(window.width, window.height));
-      std::vector<TargetDetection> found = DetectTargets(photo(window), detection);
       std::lock_guard<std::mutex> lock(mutex);
       TargetMark mark;
       mark.image = im.name;
       mark.predicted_px = px;
       mark.predicted_inside = inside;
       (*out)[p].photos.push_back(mark);
-      for (TargetDetection& d : found) {
-        d.centre_px += Eigen::Vector2d(window.x, window.y);
-        (*candidates)[p].push_back({static_cast<int>(i), d});
-      }
+      (*candidates)[p].insert((*candidates)[p].end(), near.begin(), near.end());
     }
     std::lock_guard<std::mutex> lock(mutex);
     ReportProgress(options.progress, static_cast<double>(++done) / model.images.size(),
