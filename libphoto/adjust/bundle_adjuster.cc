@@ -32,6 +32,13 @@ double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+// The shift of the camera centre at an observation's row: zero for a
+// global shutter.
+Eigen::Vector3d CentreShiftOf(const Image& image, const Camera& camera, const Observation& obs) {
+  if (!image.rolling_shutter) return Eigen::Vector3d::Zero();
+  return image.rolling_shutter->CentreShift(obs.xy.y(), camera.height);
+}
+
 std::string Lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(),
                  [](unsigned char c) { return std::tolower(c); });
@@ -298,7 +305,8 @@ std::vector<int> AddIndependentCheckPoints(ceres::Problem* problem, SparseModel*
     for (int k : obs_of_point[p]) {
       const Observation& obs = model->observations[k];
       const Image& image = model->images[obs.image];
-      views.push_back({&model->cameras[image.camera], image.pose, obs.xy});
+      const Camera& camera = model->cameras[image.camera];
+      views.push_back({&camera, image.PoseAtRow(obs.xy.y(), camera.height), obs.xy});
     }
     const auto t = TriangulatePoint(views);
     if (!t) continue;
@@ -311,8 +319,9 @@ std::vector<int> AddIndependentCheckPoints(ceres::Problem* problem, SparseModel*
       Image& image = model->images[obs.image];
       Camera& camera = model->cameras[image.camera];
       const double sigma = obs.sigma_px > 0.0 ? obs.sigma_px * mark_scale : mark_sigma;
+      const Eigen::Vector3d shift = CentreShiftOf(image, camera, obs);
       ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
-        return new ReprojectionCost<decltype(m)>(obs.xy, sigma);
+        return new ReprojectionCost<decltype(m)>(obs.xy, sigma, shift);
       });
       rows.ids.push_back(problem->AddResidualBlock(cost, loss_for(sigma), rotations[obs.image].data(),
                                                    image.pose.centre_in_world.data(), rows.position,
@@ -655,10 +664,11 @@ class CeresBundleProblem {
           obs.sigma_px > 0.0 ? obs.sigma_px * Scale(is_mark ? ObservationGroup::kMarks : ObservationGroup::kTies)
           : is_mark          ? mark_sigma_
                              : options_.observation_sigma_px * Scale(ObservationGroup::kTies);
+      const Eigen::Vector3d shift = CentreShiftOf(image, camera, obs);
       ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
         using Model = decltype(m);
-        if (is_merged) return new ReprojectionCostMergedCamera<Model>(obs.xy, sigma);
-        return new ReprojectionCost<Model>(obs.xy, sigma);
+        if (is_merged) return new ReprojectionCostMergedCamera<Model>(obs.xy, sigma, shift);
+        return new ReprojectionCost<Model>(obs.xy, sigma, shift);
       });
       const ceres::ResidualBlockId id =
           is_merged ? problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->merged[obs.image].data(), point)
@@ -1302,12 +1312,14 @@ std::vector<double> ReprojectionErrors(const SparseModel& model) {
   for (size_t i = 0; i < model.observations.size(); ++i) {
     const Observation& obs = model.observations[i];
     const Image& image = model.images[obs.image];
-    const Eigen::Vector3d p = image.pose.CamFromWorld(model.points[obs.point].position);
+    const Camera& camera = model.cameras[image.camera];
+    // As the adjustment measures it: from the pose at the observed row.
+    const Eigen::Vector3d p = image.PoseAtRow(obs.xy.y(), camera.height).CamFromWorld(model.points[obs.point].position);
     if (p.z() == 0.0) {
       errors[i] = std::numeric_limits<double>::quiet_NaN();
       continue;
     }
-    errors[i] = (model.cameras[image.camera].ImageFromCamera(p) - obs.xy).norm();
+    errors[i] = (camera.ImageFromCamera(p) - obs.xy).norm();
   }
   return errors;
 }

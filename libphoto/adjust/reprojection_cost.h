@@ -19,6 +19,12 @@
 //   ∂p/∂X = R,  ∂p/∂C = −R,  ∂(u,v)/∂p = [1/z 0 −x/z²; 0 1/z −y/z²]
 // and the model supplies ∂xy/∂(u,v) and ∂xy/∂intrinsics.
 //
+// A rolling-shutter photo's observation carries the shift of the camera
+// centre at its row (RollingShutterMotion::CentreShift, sparse_model.h): the
+// residual is then Model(R (X − C − shift)), with the same Jacobians (the
+// shift is a constant of the observation: its row is measured, and the
+// motion known).
+//
 // Points behind the camera are evaluated like any other (the residual still
 // measures the misfit); only z ≈ 0, where the projection is undefined, makes
 // Evaluate() return false so that Ceres rejects the step.
@@ -103,13 +109,16 @@ template <typename Model>
 class ReprojectionCost final
     : public ceres::SizedCostFunction<2, 4, 3, 3, Model::kNumParams> {
  public:
-  explicit ReprojectionCost(const Eigen::Vector2d& observed_xy, double sigma_px = 1.0)
-      : observed_(observed_xy), inv_sigma_(1.0 / sigma_px) {}
+  explicit ReprojectionCost(const Eigen::Vector2d& observed_xy, double sigma_px = 1.0,
+                            const Eigen::Vector3d& centre_shift = Eigen::Vector3d::Zero())
+      : observed_(observed_xy), inv_sigma_(1.0 / sigma_px), shift_(centre_shift) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
+    const Eigen::Vector3d centre =
+        Eigen::Map<const Eigen::Vector3d>(parameters[1]) + shift_;
     return EvaluateReprojection<Model>(
-        parameters[0], parameters[1], parameters[2], parameters[3], observed_, inv_sigma_,
+        parameters[0], centre.data(), parameters[2], parameters[3], observed_, inv_sigma_,
         residuals, jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr,
         jacobians ? jacobians[2] : nullptr, jacobians ? jacobians[3] : nullptr);
   }
@@ -117,6 +126,7 @@ class ReprojectionCost final
  private:
   Eigen::Vector2d observed_;
   double inv_sigma_;
+  Eigen::Vector3d shift_;
 };
 
 // One block per image, [cam_from_world (4), centre (3), intrinsics (N)], and
@@ -129,20 +139,22 @@ class ReprojectionCostMergedCamera final
  public:
   static constexpr int kCameraSize = 7 + Model::kNumParams;
   explicit ReprojectionCostMergedCamera(const Eigen::Vector2d& observed_xy,
-                                        double sigma_px = 1.0)
-      : observed_(observed_xy), inv_sigma_(1.0 / sigma_px) {}
+                                        double sigma_px = 1.0,
+                                        const Eigen::Vector3d& centre_shift = Eigen::Vector3d::Zero())
+      : observed_(observed_xy), inv_sigma_(1.0 / sigma_px), shift_(centre_shift) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
     const double* camera = parameters[0];
+    const Eigen::Vector3d centre = Eigen::Map<const Eigen::Vector3d>(camera + 4) + shift_;
     double* j_camera = jacobians ? jacobians[0] : nullptr;
     if (j_camera == nullptr) {
-      return EvaluateReprojection<Model>(camera, camera + 4, parameters[1], camera + 7,
+      return EvaluateReprojection<Model>(camera, centre.data(), parameters[1], camera + 7,
                                          observed_, inv_sigma_, residuals, nullptr, nullptr,
                                          jacobians ? jacobians[1] : nullptr, nullptr);
     }
     double j_q[8], j_c[6], j_k[2 * Model::kNumParams];
-    if (!EvaluateReprojection<Model>(camera, camera + 4, parameters[1], camera + 7,
+    if (!EvaluateReprojection<Model>(camera, centre.data(), parameters[1], camera + 7,
                                      observed_, inv_sigma_, residuals, j_q, j_c,
                                      jacobians[1], j_k)) {
       return false;
@@ -159,6 +171,7 @@ class ReprojectionCostMergedCamera final
  private:
   Eigen::Vector2d observed_;
   double inv_sigma_;
+  Eigen::Vector3d shift_;
 };
 
 // Reference implementation of the same residual for Ceres Jets (tests compare

@@ -7,6 +7,23 @@
 
 namespace aerotri {
 
+Eigen::Vector2d ProjectIntoImage(const Camera& camera, const Image& image, const Eigen::Vector3d& point_in_world,
+                                 bool* in_front) {
+  Eigen::Vector3d in_cam = image.pose.CamFromWorld(point_in_world);
+  Eigen::Vector2d xy = camera.ImageFromCamera(in_cam);
+  if (image.rolling_shutter && image.rolling_shutter->readout_time_s != 0.0) {
+    for (int step = 0; step < 20; ++step) {
+      in_cam = image.PoseAtRow(xy.y(), camera.height).CamFromWorld(point_in_world);
+      const Eigen::Vector2d next = camera.ImageFromCamera(in_cam);
+      const bool settled = (next - xy).norm() < 1e-9;
+      xy = next;
+      if (settled) break;
+    }
+  }
+  if (in_front) *in_front = in_cam.z() > 0.0;
+  return xy;
+}
+
 void SparseModel::Validate() const {
   for (const Camera& camera : cameras) camera.Validate();
   for (const Image& image : images) {

@@ -69,6 +69,28 @@ enum class PointRole {
   kCheck,    // check point: never enters the adjustment, compared afterwards
 };
 
+// A rolling shutter's exposure of one photo: the rows are read top to
+// bottom over readout_time_s while the camera moves at velocity (adjustment
+// frame units per second). Row y is exposed at
+//   t(y) = (y − (height − 1) / 2) · readout_time_s / height
+// from the middle of the readout, when the camera is at
+//   C(t) = C + t · velocity,
+// C being the pose's centre: a pose is the camera at mid-readout. The
+// camera's turning during the readout is not modelled (a stabilised or
+// steadily flying camera turns by hundredths of a degree in 50 ms).
+struct RollingShutterMotion {
+  double readout_time_s = 0.0;  // first row to last
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+
+  // The exposure time of image row y (px, aerotri convention) of an image
+  // `height` rows tall, from mid-readout (s).
+  double RowTime(double y, int height) const {
+    return height > 0 ? (y - 0.5 * (height - 1)) * readout_time_s / height : 0.0;
+  }
+  // How far the camera centre is from the pose's at row y.
+  Eigen::Vector3d CentreShift(double y, int height) const { return RowTime(y, height) * velocity; }
+};
+
 struct Image {
   int id = 0;            // external id (COLMAP IMAGE_ID, BAL camera index)
   std::string name;      // file name relative to the images folder
@@ -76,7 +98,26 @@ struct Image {
   Pose pose;
   bool registered = true;
   std::optional<PositionPrior> gps_prior;  // on the camera centre
+  // Set for a rolling-shutter photo whose motion is known (else every row
+  // is exposed at the pose, a global shutter).
+  std::optional<RollingShutterMotion> rolling_shutter;
+
+  // The pose at which image row y was exposed: the pose itself for a global
+  // shutter.
+  Pose PoseAtRow(double y, int height) const {
+    Pose at = pose;
+    if (rolling_shutter) at.centre_in_world += rolling_shutter->CentreShift(y, height);
+    return at;
+  }
 };
+
+// Where a world point appears in an image: for a rolling shutter, the row
+// at which the moving camera sees it, found by fixed-point iteration (each
+// step shrinks the error by the image motion during one row, a hundredth of
+// a pixel per pixel on a drone); for a global shutter, the projection.
+// *in_front (optional): the point lies in front of the camera.
+Eigen::Vector2d ProjectIntoImage(const Camera& camera, const Image& image, const Eigen::Vector3d& point_in_world,
+                                 bool* in_front = nullptr);
 
 struct Point {
   int id = 0;  // external id (COLMAP POINT3D_ID, BAL point index)

@@ -94,6 +94,10 @@ SyntheticSurvey MakeSyntheticSurvey(const SyntheticSurveyOptions& o) {
       image.pose.centre_in_world =
           Eigen::Vector3d(east + 0.5 * gauss(rng), north + 0.5 * gauss(rng),
                           o.flight_height_m + 0.3 * gauss(rng));
+      if (o.readout_time_s > 0.0) {
+        image.rolling_shutter = RollingShutterMotion{
+            o.readout_time_s, Eigen::Vector3d((s % 2 == 0 ? 1.0 : -1.0) * o.flight_speed_mps, 0.0, 0.0)};
+      }
       truth.images.push_back(image);
     }
   }
@@ -144,7 +148,7 @@ SyntheticSurvey MakeSyntheticSurvey(const SyntheticSurveyOptions& o) {
           std::abs(pc.y()) > max_v * pc.z()) {
         continue;
       }
-      const Eigen::Vector2d xy = camera.ImageFromCamera(pc);
+      const Eigen::Vector2d xy = ProjectIntoImage(camera, image, truth.points[p].position);
       if (xy.x() < 0 || xy.y() < 0 || xy.x() > o.width - 1 || xy.y() > o.height - 1) continue;
       truth.observations.push_back({static_cast<int>(i), static_cast<int>(p), xy, -1});
     }

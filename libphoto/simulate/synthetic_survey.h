@@ -33,6 +33,11 @@ struct SyntheticSurveyOptions {
   // north on the first strip and south on the next (lawn-mower), so that an
   // oblique block looks both ways.
   double gimbal_pitch_deg = -90.0;
+  // A rolling shutter: rows read top to bottom over readout_time_s while the
+  // drone flies along its strip at flight_speed_mps (east on the first
+  // strip, west on the next). 0: a global shutter.
+  double readout_time_s = 0.0;
+  double flight_speed_mps = 12.0;
 
   // Camera (4000 x 3000 px, 3000 px focal length; moderate Brown distortion).
   int width = 4000;
@@ -51,7 +56,9 @@ struct SyntheticSurveyOptions {
 };
 
 struct SyntheticSurvey {
-  SparseModel truth;     // exact poses, intrinsics, points; exact observations
+  // exact poses, intrinsics, points; exact observations; a rolling
+  // shutter's motion on each image (Image::rolling_shutter)
+  SparseModel truth;
   SparseModel observed;  // same structure, noisy observations (poses = truth)
   double gsd_m = 0.0;    // ground sample distance at the flight height
 };
