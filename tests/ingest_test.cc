@@ -76,6 +76,21 @@ TEST(ImageMetadata, GimbalXmpRoundTripsBesideTheExif) {
   EXPECT_FALSE(std::filesystem::exists(dir / "big.jpg"));
 }
 
+// What `aerotri simulate --readout-ms` writes, read back as a Sequoia's
+// tags are: the readout in whole microseconds, the velocity's three values.
+TEST(ImageMetadata, RollingShutterTagsRoundTripAsASequoiaWritesThem) {
+  testing::TempDir dir;
+  cv::Mat image(48, 64, CV_8UC3, cv::Scalar(40, 120, 200));
+  WriteJpegWithExif(dir / "rs.jpg", image, {{"EXIF_Make", "Parrot"}}, 90,
+                    RollingShutterXmp(0.0475, Eigen::Vector3d(2.09, 12.59, 0.0)));
+  const ImageMetadata m = ReadImageMetadata(dir / "rs.jpg");
+  ASSERT_EQ(m.xmp_sources, std::vector<std::string>{"Pix4D camera tags (Camera namespace)"});
+  ASSERT_TRUE(m.line_readout_time_s.has_value());
+  EXPECT_DOUBLE_EQ(*m.line_readout_time_s, 0.0475);
+  EXPECT_EQ(m.imu_linear_velocity_mps, (std::vector<double>{2.09, 12.59, 0.0}));
+  EXPECT_FALSE(m.camera_pitch_deg.has_value());
+}
+
 // Parrot Sequoia (the hard set's first photo, ../shared/data/hard_garfield):
 // Pix4D's camera XMP tags as the camera wrote them, read as exiftool shows
 // them, and its GPS accuracies become the photo's GPS sigmas.

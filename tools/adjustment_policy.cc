@@ -78,6 +78,12 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
                   "check point's (report.json leave_one_out; needs 4 or more control points); off")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
+  cmd->add_option("--rolling-shutter", a->rolling_shutter,
+                  "auto: photos that state their rolling shutter's readout time and their velocity (Parrot's "
+                  "Camera:LineReadoutTime and Camera:IMULinearVelocity) are adjusted with each row exposed where "
+                  "the camera was; off: every photo taken as a global shutter's (report.json adjustment.shutter)")
+      ->check(CLI::IsMember({"auto", "off"}))
+      ->capture_default_str();
   cmd->add_option("--function-tolerance", a->function_tolerance,
                   "Solver stops when the cost changes by less than this fraction")
       ->check(CLI::PositiveNumber)
@@ -106,6 +112,7 @@ void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o
   o->bundle.estimate_variance_components = a.variance_components != "stated";
   o->hold_stated_sigmas = a.variance_components == "auto";
   o->leave_one_out = a.leave_one_out == "on";
+  o->model_rolling_shutter = a.rolling_shutter == "auto";
   if (!a.gnss_lever_arm.empty()) {
     const auto l = ParseVector3(a.gnss_lever_arm);
     if (!l) throw InvalidArgument("--gnss-lever-arm: expected 'x,y,z' in metres, got '" + a.gnss_lever_arm + "'");

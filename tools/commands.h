@@ -35,6 +35,7 @@ struct AdjustmentPolicyArgs {
   bool zero_heights_are_heights = false;
   std::string variance_components = "auto";  // auto, estimate, stated
   std::string leave_one_out = "off";  // on, off
+  std::string rolling_shutter = "auto";  // auto, off
   std::string camera_file;            // a calibration certificate (camera_file.h)
   std::string gnss_lever_arm;         // "x,y,z" metres in the camera frame; empty: none
   double function_tolerance = SurveyBundleOptions().function_tolerance;
@@ -126,6 +127,8 @@ struct SimulateArgs {
   double gps_drift_v_m = 0.0;
   double gimbal_pitch_deg = -90.0;
   bool gimbal_xmp = false;
+  double readout_ms = 0.0;
+  double flight_speed_mps = 12.0;
   int control = 8;
   int checks = 6;
   double gcp_noise_m = 0.01;

@@ -54,6 +54,16 @@ void RegisterSimulateCommand(CLI::App& app, CommandAction* run) {
   cmd->add_flag("--gimbal-xmp", a->gimbal_xmp,
                 "Write DJI XMP gimbal angles (drone-dji:GimbalPitchDegree, ...) into each photo: the true attitude "
                 "with 0.5 degrees of noise");
+  cmd->add_option("--readout-ms", a->readout_ms,
+                  "A rolling shutter: rows read top to bottom over this many milliseconds while the drone flies "
+                  "(0: a global shutter). The photos carry it and the velocity in Pix4D's camera tags "
+                  "(Camera:LineReadoutTime, Camera:IMULinearVelocity), as a Parrot Sequoia writes them")
+      ->check(CLI::Range(0.0, 200.0))
+      ->capture_default_str();
+  cmd->add_option("--flight-speed", a->flight_speed_mps,
+                  "Flight speed along the strips (m/s), for the rolling shutter")
+      ->check(CLI::Range(0.5, 40.0))
+      ->capture_default_str();
   cmd->add_option("--control", a->control, "Number of ground control points")->check(CLI::Range(0, 100))->capture_default_str();
   cmd->add_option("--checks", a->checks, "Number of check points")->check(CLI::Range(0, 100))->capture_default_str();
   cmd->add_option("--gcp-noise", a->gcp_noise_m, "Survey noise of control and check points (metres)")->check(CLI::NonNegativeNumber)->capture_default_str();
@@ -83,6 +93,11 @@ int RunSimulate(const SimulateArgs& a, ToolContext& ctx) {
   o.survey.relief_m = a.relief_m;
   o.survey.gimbal_pitch_deg = a.gimbal_pitch_deg;
   o.write_gimbal_xmp = a.gimbal_xmp;
+  o.survey.readout_time_s = a.readout_ms * 1e-3;
+  o.survey.flight_speed_mps = a.flight_speed_mps;
+  if (a.gimbal_xmp && a.readout_ms > 0.0) {
+    throw UsageError("--gimbal-xmp and --readout-ms cannot be combined: one XMP packet per photo");
+  }
   o.num_buildings = a.buildings;
   o.ground_cover = a.ground == "crop-rows" ? GroundCover::kCropRows : GroundCover::kMixed;
   o.target_pattern = a.targets == "cross"    ? TargetPattern::kCross

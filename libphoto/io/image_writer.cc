@@ -35,6 +35,17 @@ std::string DjiGimbalXmp(double pitch_deg, double yaw_deg, double roll_deg) {
   return text;
 }
 
+std::string RollingShutterXmp(double readout_time_s, const Eigen::Vector3d& velocity_enu_mps) {
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"><rdf:RDF "
+                "xmlns:rdf=\"http://www.w3.org/1999/02/22-rdf-syntax-ns#\"><rdf:Description rdf:about=\"\" "
+                "xmlns:Camera=\"http://pix4d.com/camera/1.0/\" Camera:LineReadoutTime=\"%ld\" "
+                "Camera:IMULinearVelocity=\"%.2f,%.2f,%.2f\"/></rdf:RDF></x:xmpmeta>",
+                std::lround(readout_time_s * 1e6), velocity_enu_mps.x(), velocity_enu_mps.y(), velocity_enu_mps.z());
+  return text;
+}
+
 namespace {
 
 // Inserts the XMP packet as an APP1 segment after the file's leading APPn

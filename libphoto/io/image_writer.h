@@ -6,6 +6,8 @@
 // temporary name, then renamed.
 
 #include <filesystem>
+
+#include <Eigen/Core>
 #include <map>
 #include <opencv2/core.hpp>
 #include <string>
@@ -25,6 +27,12 @@ void WriteJpegWithExif(const std::filesystem::path& path, const cv::Mat& image,
 // An XMP packet with a DJI drone's gimbal angles (drone-dji:GimbalPitchDegree,
 // GimbalYawDegree, GimbalRollDegree; degrees), as DJI cameras write them.
 std::string DjiGimbalXmp(double pitch_deg, double yaw_deg, double roll_deg);
+
+// An XMP packet with a rolling shutter's readout and the camera's velocity
+// in Pix4D's camera tags, as Parrot's Sequoia writes them:
+// Camera:LineReadoutTime in microseconds (an integer) and
+// Camera:IMULinearVelocity "east,north,vertical" in m/s.
+std::string RollingShutterXmp(double readout_time_s, const Eigen::Vector3d& velocity_enu_mps);
 
 // EXIF rational triple for degrees: "(46) (30) (12.3456)".
 std::string ExifDms(double degrees);

@@ -301,6 +301,7 @@ GeoreferenceOptions GeoreferenceStageOptions(const PipelineOptions& o, const Ing
   go.bundle.num_threads = o.num_threads;
   go.bundle.focal_prior_px = ingest.focal_prior_px;
   go.enu_origin = ingest.EnuOrigin();  // the workspace's one origin
+  go.rolling_shutter = ingest.RollingShutters(&go.rolling_shutter_source);
   go.progress = StageProgress(o, "georeference");
   return go;
 }

@@ -96,6 +96,25 @@ std::map<std::string, GimbalAttitude> IngestView::GimbalAngles() const {
   return gimbal;
 }
 
+std::map<std::string, RollingShutterMotion> IngestView::RollingShutters(std::string* source) const {
+  std::map<std::string, RollingShutterMotion> motion;
+  for (const IngestedImage& im : record.images) {
+    const nlohmann::json& says = im.camera_says;
+    if (!says.contains("line_readout_time_s") || !says.contains("imu_linear_velocity_mps")) continue;
+    const auto& v = says["imu_linear_velocity_mps"];
+    if (!v.is_array() || v.size() != 3) continue;
+    RollingShutterMotion m;
+    m.readout_time_s = says["line_readout_time_s"].get<double>();
+    m.velocity = Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), 0.0);
+    if (!(m.readout_time_s > 0.0) || !m.velocity.allFinite()) continue;
+    motion[im.name] = m;
+  }
+  *source = motion.empty() ? ""
+                           : "the photos' Pix4D camera tags: Camera:LineReadoutTime (readout), Camera:IMULinearVelocity "
+                             "(east and north; vertical speed not modelled)";
+  return motion;
+}
+
 std::optional<Geodetic> IngestView::EnuOrigin() const {
   Geodetic mean{0.0, 0.0, 0.0};
   int n = 0;
@@ -362,6 +381,7 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"mark_sigma_px", g.bundle.mark_sigma_px},
           {"checkpoints_in_bundle", g.bundle.check_points_in_bundle},
           {"leave_one_out", g.leave_one_out},
+          {"rolling_shutter", g.model_rolling_shutter ? "auto" : "off"},
           {"gnss_lever_arm_m", {g.bundle.gnss_lever_arm_m.x(), g.bundle.gnss_lever_arm_m.y(), g.bundle.gnss_lever_arm_m.z()}},
           {"function_tolerance", g.bundle.function_tolerance},
           {"parameter_tolerance", g.bundle.parameter_tolerance},

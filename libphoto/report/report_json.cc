@@ -443,6 +443,16 @@ void AddDatumAndGnss(const GeoreferenceReport& r, nlohmann::json* out) {
                       {"attitude_prior", d.attitude_prior},
                       {"attitude_prior_sigma_deg_per_photo", d.attitude_prior_sigma_deg},
                       {"flights", flights}};
+    nlohmann::json shutters = nlohmann::json::array();
+    for (const GeoreferenceReport::Shutter& sh : r.shutters) {
+      shutters.push_back({{"camera_group", sh.camera},
+                          {"model", sh.model},
+                          {"images", sh.images},
+                          {"readout_time_s", sh.readout_time_s},
+                          {"mean_speed_mps", sh.mean_speed_mps},
+                          {"source", sh.source}});
+    }
+    j["adjustment"]["shutter"] = shutters;
     const ViewingGeometry& v = r.viewing;
     j["adjustment"]["attitude"] = {{"nadir_block", v.nadir},
                                    {"viewing", v.reason},

@@ -255,7 +255,11 @@ cv::Mat RenderImage(const Camera& camera, const Pose& pose, const RenderOptions&
               const Eigen::Vector2d xy(x - 0.5 + (sx + 0.5) / grid, y - 0.5 + (sy + 0.5) / grid);
               const auto ray = camera.RayFromImage(xy);
               if (!ray) continue;
-              const auto colour = TraceScene(pose.centre_in_world, world_from_cam * *ray, options, &near_target);
+              const Eigen::Vector3d centre =
+                  options.rolling_shutter
+                      ? Eigen::Vector3d(pose.centre_in_world + options.rolling_shutter->CentreShift(xy.y(), camera.height))
+                      : pose.centre_in_world;
+              const auto colour = TraceScene(centre, world_from_cam * *ray, options, &near_target);
               if (!colour) continue;
               sum += *colour;
               ++n;

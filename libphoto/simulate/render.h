@@ -59,6 +59,9 @@ struct RenderOptions {
   double noise_dn = 1.5;     // sensor noise (digital numbers)
   std::uint32_t seed = 1;
   int num_threads = 0;       // 0: all cores
+  // A rolling shutter's motion (sparse_model.h): each row, and each of its
+  // sub-samples, seen from where the camera was when it was read.
+  std::optional<RollingShutterMotion> rolling_shutter;
 };
 
 // An 8-bit BGR image (OpenCV order) of width x height of the camera.

@@ -395,6 +395,7 @@ void RenderPhotos(const SimulationOptions& options, const SyntheticGeoref& scene
     ReportProgress(options.progress, static_cast<double>(i) / truth.images.size(),
                    "rendering " + image.name);
     render.seed = options.survey.seed * 1000 + static_cast<std::uint32_t>(i);
+    render.rolling_shutter = image.rolling_shutter;
     const cv::Mat pixels = RenderImage(camera, image.pose, render);
     const std::map<std::string, std::string> exif =
         ExifOf(options, camera, scene.gps.at(image.name), egm_altitude.at(image.name));
@@ -406,6 +407,8 @@ void RenderPhotos(const SimulationOptions& options, const SyntheticGeoref& scene
       const GimbalAttitude a = AttitudeOf(image.pose);
       const double pitch = a.pitch_deg + noise(gimbal_rng), yaw = a.yaw_deg + noise(gimbal_rng);
       xmp = DjiGimbalXmp(pitch, std::remainder(yaw, 360.0), GimbalRollOf(image.pose) + noise(gimbal_rng));
+    } else if (image.rolling_shutter) {
+      xmp = RollingShutterXmp(image.rolling_shutter->readout_time_s, image.rolling_shutter->velocity);
     }
     WriteJpegWithExif(path, pixels, exif, options.jpeg_quality, xmp);
   }
@@ -415,6 +418,10 @@ void RenderPhotos(const SimulationOptions& options, const SyntheticGeoref& scene
 }  // namespace
 
 void WriteSyntheticSurvey(const SimulationOptions& options, const fs::path& dir) {
+  if (options.write_gimbal_xmp && options.survey.readout_time_s > 0.0) {
+    throw InvalidArgument("simulate: DJI gimbal XMP and a rolling shutter's Pix4D camera tags cannot both be written "
+                          "(one XMP packet per photo)");
+  }
   fs::create_directories(dir);
   ReportProgress(options.progress, 0.0, "simulating the survey");
   SyntheticGeoref scene = MakeSyntheticGeoref(options.survey, options.georef);

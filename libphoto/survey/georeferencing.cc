@@ -73,7 +73,8 @@ std::vector<View> ViewsOf(const SparseModel& model, int point_index) {
     if (obs.point != point_index) continue;
     const Image& image = model.images[obs.image];
     if (!image.registered) continue;
-    views.push_back({&model.cameras[image.camera], image.pose, obs.xy});
+    const Camera& camera = model.cameras[image.camera];
+    views.push_back({&camera, image.PoseAtRow(obs.xy.y(), camera.height), obs.xy});  // a rolling shutter's row
   }
   return views;
 }

@@ -97,6 +97,13 @@ struct GeoreferenceOptions {
   // heights drifting in time cannot tilt an oblique block either. Not used
   // in a LOCAL frame.
   std::map<std::string, GimbalAttitude> gimbal;
+  // Rolling shutters by image name: readout time and velocity (ENU m/s) as
+  // the photos state them (RollingShutterMotion, sparse_model.h); an image
+  // without an entry is exposed at once (a global shutter). Where they came
+  // from, for the report. Not used in a LOCAL frame.
+  std::map<std::string, RollingShutterMotion> rolling_shutter;
+  std::string rolling_shutter_source;
+  bool model_rolling_shutter = true;  // false: every photo a global shutter's
   QualityGates gates;
   // true: every intrinsic is refined where the block determines it: a focal
   // length whose a-priori sigma exceeds weak_focal_rel of its value (the
@@ -284,6 +291,18 @@ struct LeaveOneOut {
 };
 
 struct GeoreferenceReport {
+  // Per camera group: the shutter as modelled. "rolling": its photos' rows
+  // exposed as the camera moved (the readout time, median over the group's
+  // photos, and their mean speed); "global": every row at once.
+  struct Shutter {
+    int camera = 0;  // the model's camera group
+    std::string model = "global";
+    int images = 0;  // registered photos with their motion modelled
+    double readout_time_s = 0.0;
+    double mean_speed_mps = 0.0;
+    std::string source;
+  };
+  std::vector<Shutter> shutters;
   std::string crs;       // as given or chosen
   std::string crs_name;  // PROJ's name
   std::string crs_source;  // "--crs", "control file", "UTM zone of the survey centre"

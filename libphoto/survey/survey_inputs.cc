@@ -466,8 +466,48 @@ void ChooseFrameAndDatum(SurveyState* s) {
   ChooseOutputCrs(s);
 }
 
+// Each rolling-shutter photo's motion (ENU, the adjustment frame), and per
+// camera group what is modelled, for the report.
+void AttachRollingShutters(SurveyState* s) {
+  const GeoreferenceOptions& o = s->Options();
+  std::vector<GeoreferenceReport::Shutter> shutters(s->model->cameras.size());
+  std::vector<std::vector<double>> readouts(shutters.size());
+  for (size_t c = 0; c < shutters.size(); ++c) shutters[c].camera = static_cast<int>(c);
+  for (Image& image : s->model->images) {
+    image.rolling_shutter.reset();
+    const auto it = o.rolling_shutter.find(image.name);
+    if (s->local || !o.model_rolling_shutter || it == o.rolling_shutter.end() || !image.registered ||
+        it->second.readout_time_s <= 0.0) {
+      continue;
+    }
+    image.rolling_shutter = it->second;
+    GeoreferenceReport::Shutter& group = shutters[image.camera];
+    ++group.images;
+    group.mean_speed_mps += it->second.velocity.norm();
+    readouts[image.camera].push_back(it->second.readout_time_s);
+  }
+  for (size_t c = 0; c < shutters.size(); ++c) {
+    GeoreferenceReport::Shutter& group = shutters[c];
+    if (group.images > 0) {
+      std::vector<double>& r = readouts[c];
+      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+      group.model = "rolling";
+      group.readout_time_s = r[r.size() / 2];
+      group.mean_speed_mps /= group.images;
+      group.source = o.rolling_shutter_source;
+    } else {
+      group.source = o.rolling_shutter.empty() ? "assumed: no photo states a readout time and its velocity"
+                     : !o.model_rolling_shutter ? "the photos state a rolling shutter; not modelled (--rolling-shutter off)"
+                     : s->local                 ? "the photos state a rolling shutter; not modelled in a LOCAL frame"
+                                                : "assumed: no photo of the group states a readout time and its velocity";
+    }
+  }
+  s->report.shutters = shutters;
+}
+
 void AttachPriors(SurveyState* s) {
   AttachGpsPriors(s);
+  AttachRollingShutters(s);
   ExcludeControlOutsideSurvey(s);
   AddSurveyedPoints(s);
 }
