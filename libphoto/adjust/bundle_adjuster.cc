@@ -503,7 +503,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
 // The problem for aerotri's dense-Schur solver (BundleOptions::engine), when
 // it applies: a free network (no priors) of reprojection residuals without a
 // robust loss, every adjusted image in a merged block [q, C, intrinsics] of
-// its own, one camera model, a reduced camera system of at most
+// its own and a global shutter, one camera model, a reduced camera system of at most
 // kMaxDenseSchurSize rows. Otherwise false with the reason.
 bool MakeDenseSchurProblem(SparseModel* model, const BundleOptions& options, const std::vector<char>& image_used,
                            const std::vector<char>& point_used, const std::vector<std::vector<int>>& refined,
@@ -527,6 +527,7 @@ bool MakeDenseSchurProblem(SparseModel* model, const BundleOptions& options, con
     const int c = model->images[i].camera;
     const Camera& camera = model->cameras[c];
     if ((*merged)[i].empty()) return no("image '" + model->images[i].name + "' shares its camera group or is held");
+    if (model->images[i].rolling_shutter) return no("image '" + model->images[i].name + "' has a rolling shutter");
     if (problem->cameras.empty()) problem->model = camera.model;
     if (camera.model != problem->model) return no("the images use more than one camera model");
     if (c < static_cast<int>(options.focal_prior_px.size()) && options.focal_prior_px[c] > 0.0) {

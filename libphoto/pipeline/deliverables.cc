@@ -1426,11 +1426,23 @@ namespace {
 void CheckPointsOnSurvey(const PipelineOptions& o, json* report_out) {
   json& report = *report_out;
   const GeoFrame g = FrameOf(report);
-  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
+  SparseModel model = ReadColmapText(o.workspace / "georeferenced");
   IngestView ingest = LoadIngest(o);
   std::map<std::string, int> image_of, ingest_of;
   for (size_t i = 0; i < model.images.size(); ++i) image_of[model.images[i].name] = static_cast<int>(i);
   for (size_t i = 0; i < ingest.names.size(); ++i) ingest_of[ingest.names[i]] = static_cast<int>(i);
+  // The rolling shutters the adjustment modelled (adjustment.shutter), so
+  // that each mark is seen from where its photo's camera was.
+  bool rolling = false;
+  if (report.contains("adjustment") && report["adjustment"].contains("shutter")) {
+    for (const json& shutter : report["adjustment"]["shutter"]) rolling |= shutter.value("model", "") == "rolling";
+  }
+  if (rolling) {
+    std::string source;
+    for (const auto& [name, motion] : ingest.RollingShutters(&source)) {
+      if (const auto it = image_of.find(name); it != image_of.end()) model.images[it->second].rolling_shutter = motion;
+    }
+  }
   const GcpFile checks = ReadGcpFile(o.checkpoints, o.gcp_pixel_origin);
   const Crs file_crs = Crs::FromString(checks.crs);
   std::vector<GroundPointResult> results;
@@ -1449,7 +1461,8 @@ void CheckPointsOnSurvey(const PipelineOptions& o, json* report_out) {
       const Image& image = model.images[it->second];
       // Control files measure full-resolution pixels; the model is at the working resolution.
       const Eigen::Vector2d xy = (m.xy_px.array() + 0.5) / ingest.scale[in->second] - 0.5;
-      views.push_back({&model.cameras[image.camera], image.pose, xy});
+      const Camera& camera = model.cameras[image.camera];
+      views.push_back({&camera, image.PoseAtRow(xy.y(), camera.height), xy});
     }
     Eigen::Vector3d position = Eigen::Vector3d::Zero();
     const GroundPointResult r = EvaluateGroundPoint(point.name, PointRole::kCheck, views,

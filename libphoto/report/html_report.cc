@@ -669,6 +669,17 @@ std::string CameraCalibration(const json& r) {
         << (sigma.contains(name) ? Num(Get(sigma, name.c_str()), d) : std::string("held")) << "</td></tr>";
     }
     h << "</table>";
+    for (const auto& shutter : adj.value("shutter", json::array())) {
+      if (shutter.value("camera", -1) != g.value("camera", -2)) continue;
+      if (shutter.value("model", "") == "rolling") {
+        h << "<p>Shutter: rolling, each row seen from where the camera was when it was read: readout "
+          << Num(1000.0 * Get(shutter, "readout_time_s"), 1) << " ms, " << shutter.value("images", 0)
+          << " photos at a mean " << Num(Get(shutter, "mean_speed_mps"), 1) << " m/s ("
+          << Escape(Text(shutter, "source", "")) << ").</p>";
+      } else {
+        h << "<p>Shutter: global (" << Escape(Text(shutter, "source", "")) << ").</p>";
+      }
+    }
     if (g.contains("mm")) {
       const json& mm = g["mm"];
       auto with_sigma = [&](const char* value, const char* s) {

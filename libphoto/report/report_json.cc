@@ -445,7 +445,7 @@ void AddDatumAndGnss(const GeoreferenceReport& r, nlohmann::json* out) {
                       {"flights", flights}};
     nlohmann::json shutters = nlohmann::json::array();
     for (const GeoreferenceReport::Shutter& sh : r.shutters) {
-      shutters.push_back({{"camera_group", sh.camera},
+      shutters.push_back({{"camera", sh.camera},
                           {"model", sh.model},
                           {"images", sh.images},
                           {"readout_time_s", sh.readout_time_s},

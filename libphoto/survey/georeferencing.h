@@ -295,7 +295,7 @@ struct GeoreferenceReport {
   // exposed as the camera moved (the readout time, median over the group's
   // photos, and their mean speed); "global": every row at once.
   struct Shutter {
-    int camera = 0;  // the model's camera group
+    int camera = 0;  // the camera group's id (as adjustment.intrinsics names it)
     std::string model = "global";
     int images = 0;  // registered photos with their motion modelled
     double readout_time_s = 0.0;

@@ -472,7 +472,7 @@ void AttachRollingShutters(SurveyState* s) {
   const GeoreferenceOptions& o = s->Options();
   std::vector<GeoreferenceReport::Shutter> shutters(s->model->cameras.size());
   std::vector<std::vector<double>> readouts(shutters.size());
-  for (size_t c = 0; c < shutters.size(); ++c) shutters[c].camera = static_cast<int>(c);
+  for (size_t c = 0; c < shutters.size(); ++c) shutters[c].camera = s->model->cameras[c].id;
   for (Image& image : s->model->images) {
     image.rolling_shutter.reset();
     const auto it = o.rolling_shutter.find(image.name);
