@@ -89,6 +89,19 @@ TEST(ImageMetadata, RollingShutterTagsRoundTripAsASequoiaWritesThem) {
   EXPECT_DOUBLE_EQ(*m.line_readout_time_s, 0.0475);
   EXPECT_EQ(m.imu_linear_velocity_mps, (std::vector<double>{2.09, 12.59, 0.0}));
   EXPECT_FALSE(m.camera_pitch_deg.has_value());
+  // What the adjustment takes of them: the readout, the velocity east and north.
+  const auto stated = RollingShutterStatedBy(m);
+  ASSERT_TRUE(stated.has_value());
+  EXPECT_DOUBLE_EQ(stated->readout_time_s, 0.0475);
+  EXPECT_DOUBLE_EQ(stated->east_mps, 2.09);
+  EXPECT_DOUBLE_EQ(stated->north_mps, 12.59);
+  // A readout without a velocity (or none at all) states no motion.
+  ImageMetadata readout_only = m;
+  readout_only.imu_linear_velocity_mps.clear();
+  EXPECT_FALSE(RollingShutterStatedBy(readout_only).has_value());
+  ImageMetadata still = m;
+  still.line_readout_time_s = 0.0;
+  EXPECT_FALSE(RollingShutterStatedBy(still).has_value());
 }
 
 // Parrot Sequoia (the hard set's first photo, ../shared/data/hard_garfield):
@@ -108,6 +121,12 @@ TEST(ImageMetadata, ParrotSequoiaSaysItsAttitudeAccuracyReadoutAndCalibration) {
   EXPECT_DOUBLE_EQ(*m.gps_z_accuracy_m, 3.419);
   EXPECT_DOUBLE_EQ(*m.line_readout_time_s, 0.0475);  // 47500 us
   EXPECT_EQ(m.imu_linear_velocity_mps, (std::vector<double>{2.09, 12.59, 0.61}));
+  // Flying north (the next photos' GPS lie 57 and 116 m north): the second
+  // value is north, the first east.
+  const auto shutter = RollingShutterStatedBy(m);
+  ASSERT_TRUE(shutter.has_value());
+  EXPECT_DOUBLE_EQ(shutter->north_mps, 12.59);
+  EXPECT_DOUBLE_EQ(shutter->east_mps, 2.09);
   EXPECT_DOUBLE_EQ(*m.perspective_focal_mm, 4.812073);
   EXPECT_EQ(m.principal_point_mm, (std::vector<double>{3.042001, 2.280612}));
   EXPECT_EQ(m.perspective_distortion,

@@ -124,21 +124,26 @@ nlohmann::json InitialOrientationJson(const InitialOrientationReport& r) {
 
 namespace {
 
-// Gimbal angles (DJI XMP) of the model's photos, to check the adjusted
-// attitudes against; unreadable photos are GpsFromImages' to name.
-std::map<std::string, GimbalAttitude> GimbalAnglesOf(const SparseModel& model, const std::string& images_dir) {
-  std::map<std::string, GimbalAttitude> gimbal;
+// What the model's photos say about their capture: gimbal angles (DJI XMP),
+// to check the adjusted attitudes against, and rolling shutters
+// (RollingShutterStatedBy), to adjust with; unreadable photos are
+// GpsFromImages' to name.
+void ReadWhatThePhotosSay(const SparseModel& model, const std::string& images_dir,
+                          std::map<std::string, GimbalAttitude>* gimbal,
+                          std::map<std::string, RollingShutterMotion>* shutters) {
   for (const Image& image : model.images) {
     const fs::path path = fs::path(images_dir) / image.name;
     if (!fs::exists(path)) continue;  // GpsFromImages has said so
     try {
       const ImageMetadata m = ReadImageMetadata(path);
-      if (m.gimbal_pitch_deg && m.gimbal_yaw_deg) gimbal[image.name] = {*m.gimbal_pitch_deg, *m.gimbal_yaw_deg};
+      if (m.gimbal_pitch_deg && m.gimbal_yaw_deg) (*gimbal)[image.name] = {*m.gimbal_pitch_deg, *m.gimbal_yaw_deg};
+      if (const auto stated = RollingShutterStatedBy(m)) {
+        (*shutters)[image.name] = {stated->readout_time_s, Eigen::Vector3d(stated->east_mps, stated->north_mps, 0.0)};
+      }
     } catch (const Error&) {
       // unreadable: GpsFromImages has said so
     }
   }
-  return gimbal;
 }
 
 // What made an adjust report: the process, and the options and inputs as
@@ -258,9 +263,13 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
                         &warnings);
     ctx.Info("EXIF GPS: " + std::to_string(gps.size()) + " of " + std::to_string(names.size()) + " images");
   }
-  // Gimbal angles (DJI XMP), to check the adjusted attitudes against.
+  // Gimbal angles (DJI XMP), to check the adjusted attitudes against, and
+  // rolling shutters, to adjust with.
   std::map<std::string, GimbalAttitude> gimbal;
-  if (!args.images_dir.empty()) gimbal = GimbalAnglesOf(model, args.images_dir);
+  if (!args.images_dir.empty()) {
+    ReadWhatThePhotosSay(model, args.images_dir, &gimbal, &options.rolling_shutter);
+    if (!options.rolling_shutter.empty()) options.rolling_shutter_source = kStatedRollingShutterSource;
+  }
   if (!args.gps_csv.empty()) {
     const auto csv = ReadGpsFile(args.gps_csv, reference, args.gps_sigma_h_m, args.gps_sigma_v_m);
     for (const auto& [name, fix] : csv) gps[name] = fix;

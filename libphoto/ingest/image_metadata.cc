@@ -224,6 +224,19 @@ ImageMetadata ReadImageMetadata(const std::filesystem::path& path) {
   return m;
 }
 
+const char* const kStatedRollingShutterSource =
+    "the photos' Pix4D camera tags: Camera:LineReadoutTime (readout), Camera:IMULinearVelocity (east and north; "
+    "vertical speed not modelled)";
+
+std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& m) {
+  if (!m.line_readout_time_s || !(*m.line_readout_time_s > 0.0) || m.imu_linear_velocity_mps.size() != 3) {
+    return std::nullopt;
+  }
+  const double east = m.imu_linear_velocity_mps[0], north = m.imu_linear_velocity_mps[1];
+  if (!std::isfinite(east) || !std::isfinite(north)) return std::nullopt;
+  return StatedRollingShutter{*m.line_readout_time_s, east, north};
+}
+
 std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m) {
   constexpr double kFloor = 0.005;
   if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_lat_m > 0 && *m.rtk_std_lon_m > 0 &&

@@ -87,6 +87,21 @@ struct StatedGpsSigmas {
 };
 std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m);
 
+// The rolling shutter a photo states: the readout time (Pix4D camera tags'
+// LineReadoutTime) and the camera's velocity east and north, the first two
+// values of IMULinearVelocity, as the tracks of Parrot Sequoia photos' GPS
+// positions show them (no published description fixes the axes; the third
+// value's sign is not established either, and is left out: under 1 m/s, it
+// moves a camera by under 5 cm in a 50 ms readout). nullopt unless the
+// photo states both, the readout positive.
+struct StatedRollingShutter {
+  double readout_time_s = 0.0;
+  double east_mps = 0.0, north_mps = 0.0;
+};
+std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& m);
+// Where RollingShutterStatedBy's figures come from, in words (for reports).
+extern const char* const kStatedRollingShutterSource;
+
 // Throws IoError naming the path when GDAL cannot open the file as an image
 // (missing, corrupt, not an image).
 ImageMetadata ReadImageMetadata(const std::filesystem::path& path);

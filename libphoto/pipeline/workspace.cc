@@ -13,6 +13,7 @@
 #include "libphoto/base/error.h"
 #include "libphoto/base/memory.h"
 #include "libphoto/base/parallel.h"
+#include "libphoto/ingest/image_metadata.h"
 
 namespace aerotri {
 namespace fs = std::filesystem;
@@ -99,19 +100,16 @@ std::map<std::string, GimbalAttitude> IngestView::GimbalAngles() const {
 std::map<std::string, RollingShutterMotion> IngestView::RollingShutters(std::string* source) const {
   std::map<std::string, RollingShutterMotion> motion;
   for (const IngestedImage& im : record.images) {
+    // What ingest recorded of the tags, read as the photo states them.
     const nlohmann::json& says = im.camera_says;
-    if (!says.contains("line_readout_time_s") || !says.contains("imu_linear_velocity_mps")) continue;
-    const auto& v = says["imu_linear_velocity_mps"];
-    if (!v.is_array() || v.size() != 3) continue;
-    RollingShutterMotion m;
-    m.readout_time_s = says["line_readout_time_s"].get<double>();
-    m.velocity = Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), 0.0);
-    if (!(m.readout_time_s > 0.0) || !m.velocity.allFinite()) continue;
-    motion[im.name] = m;
+    ImageMetadata m;
+    if (says.contains("line_readout_time_s")) m.line_readout_time_s = says["line_readout_time_s"].get<double>();
+    if (says.contains("imu_linear_velocity_mps")) m.imu_linear_velocity_mps = says["imu_linear_velocity_mps"].get<std::vector<double>>();
+    if (const auto stated = RollingShutterStatedBy(m)) {
+      motion[im.name] = {stated->readout_time_s, Eigen::Vector3d(stated->east_mps, stated->north_mps, 0.0)};
+    }
   }
-  *source = motion.empty() ? ""
-                           : "the photos' Pix4D camera tags: Camera:LineReadoutTime (readout), Camera:IMULinearVelocity "
-                             "(east and north; vertical speed not modelled)";
+  *source = motion.empty() ? "" : kStatedRollingShutterSource;
   return motion;
 }
 

@@ -141,12 +141,8 @@ struct IngestView {
   // The photos' gimbal angles (DJI XMP) by image name, where they have both
   // pitch and yaw.
   std::map<std::string, GimbalAttitude> GimbalAngles() const;
-  // The rolling shutters the photos state, by image name: the readout time
-  // (Pix4D camera tags' LineReadoutTime) and the velocity (IMULinearVelocity:
-  // its first two values east and north, as the tracks of Parrot Sequoia
-  // photos' GPS positions show them; its third, whose sign no published
-  // description fixes, is left out: under 1 m/s, it moves a camera by under
-  // 5 cm in a 50 ms readout). *source says so for the report.
+  // The rolling shutters the photos state (RollingShutterStatedBy), by
+  // image name, the velocity in ENU; *source says where from, for the report.
   std::map<std::string, RollingShutterMotion> RollingShutters(std::string* source) const;
 };
 
