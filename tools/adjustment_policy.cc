@@ -74,8 +74,9 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
       ->check(CLI::IsMember({"auto", "estimate", "stated"}))
       ->capture_default_str();
   cmd->add_option("--leave-one-out", a->leave_one_out,
-                  "on: adjust once more per control point with it withheld, and report its residual as a "
-                  "check point's (report.json leave_one_out; needs 4 or more control points); off")
+                  "on: each control point withheld from the adjustment (the block-deletion update of its normal "
+                  "equations at the optimum), its residual reported as a check point's (report.json "
+                  "leave_one_out; needs 4 or more control points); off")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   cmd->add_option("--rolling-shutter", a->rolling_shutter,

@@ -317,7 +317,7 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
         "check", "Accuracy of an existing survey: against check points (--checkpoints), and leave-one-out over "
                  "its control points (--leave-one-out on, with --gcp and the options the survey ran with); "
                  "rewrites OUTPUT/report.json and report.html");
-    a->policy.leave_one_out = "off";  // asked for, as it re-adjusts the survey once per control point
+    a->policy.leave_one_out = "off";  // asked for: it adjusts the survey's reconstruction again
     AddStageOptions(cmd, a.get(), /*images_positional=*/false, kGeoreferenceOptions | kThreadsOption);
     cmd->callback([a, run]() {
       if (a->checkpoints.empty() && a->policy.leave_one_out != "on") {

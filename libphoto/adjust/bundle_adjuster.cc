@@ -388,6 +388,60 @@ std::vector<MarkTest> MarkTests(const internal::PrecisionSolution& solution, con
   return tests;
 }
 
+// A withheld point's update applied: the new values of the blocks it
+// touches, through their manifolds, as poses and intrinsics.
+WithheldPoint WithheldOf(ceres::Problem* problem, const internal::PrecisionProblem& pp,
+                         const internal::PrecisionSolution& solution, const internal::WithheldUpdate& u,
+                         const SparseModel& model, int point, const std::vector<int>& rotation_slot,
+                         const std::vector<int>& centre_slot, const std::vector<int>& camera_slot) {
+  WithheldPoint w;
+  w.point = point;
+  w.position = model.points[point].position;
+  if (!u.ok) {
+    w.note = u.note;
+    return w;
+  }
+  // The step of each touched block, and its value after it.
+  std::map<int, std::vector<double>> stepped;  // reduced slot -> new value
+  for (size_t c = 0; c < u.cols.size();) {
+    const int slot = static_cast<int>(std::upper_bound(solution.reduced_offset.begin(),
+                                                       solution.reduced_offset.end(), u.cols[c]) -
+                                      solution.reduced_offset.begin()) - 1;
+    double* block = pp.reduced[slot];
+    const int tangent = problem->ParameterBlockTangentSize(block);
+    const int size = problem->ParameterBlockSize(block);
+    std::vector<double> delta(tangent), value(size);
+    for (int k = 0; k < tangent; ++k) delta[k] = u.delta(static_cast<Eigen::Index>(c) + k);
+    const ceres::Manifold* manifold = problem->GetManifold(block);
+    if (manifold != nullptr) {
+      manifold->Plus(block, delta.data(), value.data());
+    } else {
+      for (int k = 0; k < size; ++k) value[k] = block[k] + delta[k];
+    }
+    stepped.emplace(slot, std::move(value));
+    c += static_cast<size_t>(tangent);
+  }
+  for (size_t i = 0; i < rotation_slot.size(); ++i) {
+    const auto r = stepped.find(rotation_slot[i]);
+    const auto t = stepped.find(centre_slot[i]);
+    if (r == stepped.end() && t == stepped.end()) continue;
+    Pose pose = model.images[i].pose;
+    if (r != stepped.end() && rotation_slot[i] >= 0) {
+      const std::vector<double>& q = r->second;
+      pose.cam_from_world = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+    }
+    if (t != stepped.end() && centre_slot[i] >= 0) pose.centre_in_world = Eigen::Vector3d(t->second.data());
+    w.images.emplace_back(static_cast<int>(i), pose);
+  }
+  for (size_t c = 0; c < camera_slot.size(); ++c) {
+    const auto it = camera_slot[c] >= 0 ? stepped.find(camera_slot[c]) : stepped.end();
+    if (it != stepped.end()) w.cameras.emplace_back(static_cast<int>(c), it->second);
+  }
+  w.position += u.point_delta;
+  w.computed = true;
+  return w;
+}
+
 BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, const std::vector<char>& image_used,
                                    const std::vector<char>& point_used,
                                    std::vector<std::array<double, 4>>& rotations,
@@ -426,7 +480,8 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     rotation_slot[i] = add_reduced(rotations[i].data());
     centre_slot[i] = add_reduced(model->images[i].pose.centre_in_world.data());
   }
-  for (Camera& camera : model->cameras) add_reduced(camera.params.data());
+  std::vector<int> camera_slot;
+  for (Camera& camera : model->cameras) camera_slot.push_back(add_reduced(camera.params.data()));
   std::vector<int> offset_slot;
   for (Eigen::Vector3d& o : *gps_offsets) offset_slot.push_back(add_reduced(o.data()));
   std::vector<int> drift_slot;
@@ -453,6 +508,13 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
           : AddIndependentCheckPoints(problem, model, image_used, rotations, loss_for, mark_sigma, mark_scale, &pp);
 
   pp.groups.assign(groups.begin(), groups.end());
+  std::vector<int> withheld_points;
+  for (int p : options.withhold_points) {
+    if (p < 0 || p >= static_cast<int>(model->points.size()) || point_slot[p] < 0) continue;
+    withheld_points.push_back(p);
+    pp.withheld.push_back(point_slot[p]);
+  }
+  pp.withhold_marks = !options.check_points_in_bundle;
   const internal::PrecisionSolution solution = internal::SolvePrecision(pp);
   if (!solution.ok) {
     out.note = "not computed: " + solution.note;
@@ -491,6 +553,10 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
   }
   for (int slot : drift_slot) out.gps_drift_cov.push_back(DriftCovariance(solution, slot, options.gps_drift_axes));
   out.marks = MarkTests(solution, *model, mark_observation, mark_sigma_of);
+  for (size_t k = 0; k < solution.withheld.size(); ++k) {
+    out.withheld.push_back(WithheldOf(problem, pp, solution, solution.withheld[k], *model, withheld_points[k],
+                                      rotation_slot, centre_slot, camera_slot));
+  }
   for (size_t g = 0; g < solution.groups.size() && g < group_out->size(); ++g) (*group_out)[g] = solution.groups[g];
   out.computed = true;
   out.time_s = SecondsSince(start);

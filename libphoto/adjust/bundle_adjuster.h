@@ -241,6 +241,11 @@ struct BundleOptions {
   // block; no prior) instead of independent points triangulated afterwards
   // with the cameras held.
   bool check_points_in_bundle = false;
+  // With compute_precision: points (indices in SparseModel::points) each
+  // withheld on its own from the precision pass's normal equations, for
+  // leave-one-out without a re-solve (BundlePrecision::withheld): their
+  // marks and prior, or with check_points_in_bundle their prior only.
+  std::vector<int> withhold_points;
 
   // Each observation group's stated sigmas multiplied by this factor
   // (index: ObservationGroup): the weights variance-component estimation
@@ -322,6 +327,20 @@ struct MarkTest {
   double MaxAbsW() const { return w.cwiseAbs().maxCoeff(); }
 };
 
+// A point withheld from the solved bundle (BundleOptions::withhold_points):
+// the adjustment as it would be without it, to first order from the
+// optimum (bundle_precision.h), over the images and camera groups its
+// observations touch (the rest also move, but do not bear on the point).
+struct WithheldPoint {
+  int point = -1;
+  bool computed = false;
+  std::string note;  // why not, when !computed
+  std::vector<std::pair<int, Pose>> images;                  // index, pose
+  std::vector<std::pair<int, std::vector<double>>> cameras;  // index, params
+  // With check points in the bundle: the point, adjusted free of its prior.
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+};
+
 struct BundlePrecision {
   bool computed = false;
   std::string note;              // why not, when !computed
@@ -338,6 +357,7 @@ struct BundlePrecision {
   // axes held.
   std::vector<Eigen::Matrix3d> gps_drift_cov;
   std::vector<MarkTest> marks;  // control marks, and check marks inside the bundle
+  std::vector<WithheldPoint> withheld;  // BundleOptions::withhold_points
   double time_s = 0.0;
   const PointPrecision* ForPoint(int point) const;
   const ImagePrecision* ForImage(int image) const;

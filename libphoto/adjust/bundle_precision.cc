@@ -333,6 +333,115 @@ bool MarkCofactors(const PrecisionProblem& p, ceres::Problem::EvaluateOptions ev
   return true;
 }
 
+// Each withheld point's one-step update (bundle_precision.h). `residuals`
+// are the adjusted rows', in J's order.
+void WithholdPoints(const PrecisionProblem& p, const RowView& j, int n3, const std::vector<double>& residuals,
+                    PrecisionSolution* solution) {
+  PrecisionSolution& out = *solution;
+  const int nc = static_cast<int>(out.reduced_cov.rows());
+  std::vector<int> want(n3 / 3, -1);
+  for (size_t k = 0; k < p.withheld.size(); ++k) want.at(p.withheld[k]) = static_cast<int>(k);
+  std::vector<std::vector<int>> rows(p.withheld.size());
+  for (int r = 0; r < j.rows(); ++r) {
+    for (RowView::InnerIterator it(j, r); it; ++it) {
+      if (it.col() < n3) {
+        if (want[it.col() / 3] >= 0) rows[want[it.col() / 3]].push_back(r);
+        break;
+      }
+    }
+  }
+  // The reduced block of each column: a step is taken by whole blocks.
+  auto block_of = [&](int col) {
+    return static_cast<int>(std::upper_bound(out.reduced_offset.begin(), out.reduced_offset.end(), col) -
+                            out.reduced_offset.begin()) - 1;
+  };
+  for (size_t k = 0; k < p.withheld.size(); ++k) {
+    WithheldUpdate u;
+    const int pt = p.withheld[k];
+    Eigen::MatrixXd a, b;
+    std::vector<int> touched;
+    SplitRows(j, rows[k], 3 * pt, n3, &a, &touched, &b);
+    Eigen::VectorXd r(static_cast<Eigen::Index>(rows[k].size()));
+    for (size_t i = 0; i < rows[k].size(); ++i) r(i) = residuals[rows[k][i]];
+    // Whole blocks: b's columns spread over them.
+    for (int c : touched) {
+      const int slot = block_of(c);
+      const int end = slot + 1 < static_cast<int>(out.reduced_offset.size()) ? out.reduced_offset[slot + 1] : nc;
+      for (int col = out.reduced_offset[slot]; col < end; ++col) u.cols.push_back(col);
+    }
+    std::sort(u.cols.begin(), u.cols.end());
+    u.cols.erase(std::unique(u.cols.begin(), u.cols.end()), u.cols.end());
+    Eigen::MatrixXd bw = Eigen::MatrixXd::Zero(b.rows(), static_cast<Eigen::Index>(u.cols.size()));
+    for (size_t c = 0; c < touched.size(); ++c) {
+      const auto at = std::lower_bound(u.cols.begin(), u.cols.end(), touched[c]) - u.cols.begin();
+      bw.col(at) = b.col(static_cast<Eigen::Index>(c));
+    }
+    const Eigen::Matrix3d v = a.transpose() * a;
+    const Eigen::MatrixXd w = a.transpose() * bw;  // 3 x s
+    const Eigen::Vector3d g_p = a.transpose() * r;
+    const Eigen::MatrixXd c = Gather(out.reduced_cov, u.cols, u.cols);
+    const Eigen::LDLT<Eigen::MatrixXd> c_ldlt(c);
+    if (u.cols.empty() || c_ldlt.info() != Eigen::Success) {
+      u.note = "the point's cameras have no marginal covariance";
+      out.withheld.push_back(u);
+      continue;
+    }
+    const Eigen::MatrixXd c_inv = c_ldlt.solve(Eigen::MatrixXd::Identity(c.rows(), c.cols()));
+    const Eigen::FullPivLU<Eigen::Matrix3d> v_lu(v);
+    if (v_lu.rank() < 3) {
+      u.note = "the point is not determined by its own rows";
+      out.withheld.push_back(u);
+      continue;
+    }
+    Eigen::MatrixXd m;   // the marginal information of s without the rows
+    Eigen::VectorXd rhs;  // Δ_s = m⁻¹ rhs
+    Eigen::Matrix3d v_kept = Eigen::Matrix3d::Zero();  // V without the prior (marks kept)
+    Eigen::Vector3d g_kept = Eigen::Vector3d::Zero();
+    if (p.withhold_marks) {
+      const Eigen::MatrixXd t = v_lu.solve(w);  // V⁻¹ W
+      m = c_inv - (bw.transpose() * bw - w.transpose() * t);
+      rhs = bw.transpose() * r - t.transpose() * g_p;
+    } else {
+      // The prior's rows: those without a reduced column.
+      Eigen::MatrixXd a_prior(0, 3);
+      Eigen::VectorXd r_prior(0);
+      for (Eigen::Index i = 0; i < a.rows(); ++i) {
+        if (bw.row(i).isZero(0.0)) {
+          a_prior.conservativeResize(a_prior.rows() + 1, 3);
+          a_prior.row(a_prior.rows() - 1) = a.row(i);
+          r_prior.conservativeResize(r_prior.size() + 1);
+          r_prior(r_prior.size() - 1) = r(i);
+        }
+      }
+      v_kept = v - a_prior.transpose() * a_prior;
+      g_kept = g_p - a_prior.transpose() * r_prior;
+      const Eigen::FullPivLU<Eigen::Matrix3d> kept_lu(v_kept);
+      if (a_prior.rows() == 0 || kept_lu.rank() < 3) {
+        u.note = a_prior.rows() == 0 ? "the point has no prior to withhold" : "the point's marks do not determine it";
+        out.withheld.push_back(u);
+        continue;
+      }
+      // S' = S − W'ᵀ(V'⁻¹ − V⁻¹)W; the reduced gradient gains the point's
+      // old elimination term and loses the new one.
+      const Eigen::MatrixXd t_old = v_lu.solve(w), t_new = kept_lu.solve(w);
+      m = c_inv - w.transpose() * (t_new - t_old);
+      rhs = -(t_old.transpose() * g_p - t_new.transpose() * g_kept);
+      v_kept = kept_lu.inverse();  // from here on V'⁻¹
+    }
+    const Eigen::LLT<Eigen::MatrixXd> m_llt(m);
+    if (m_llt.info() != Eigen::Success) {
+      u.note = "the block without the point does not determine its cameras";
+      out.withheld.push_back(u);
+      continue;
+    }
+    u.delta = m_llt.solve(rhs);
+    if (!p.withhold_marks) u.point_delta = -v_kept * (g_kept + w * u.delta);
+    u.ok = u.delta.allFinite() && u.point_delta.allFinite();
+    if (!u.ok) u.note = "the update is not finite";
+    out.withheld.push_back(u);
+  }
+}
+
 }  // namespace
 
 PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
@@ -355,7 +464,8 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   eval.num_threads = std::max(1, p.num_threads);
   ceres::CRSMatrix crs_main;  // the adjusted rows' Jacobian (viewed by j)
   std::vector<double> adjusted_residuals;
-  if (!problem.Evaluate(eval, nullptr, p.groups.empty() ? nullptr : &adjusted_residuals, nullptr, &crs_main)) {
+  const bool need_residuals = !p.groups.empty() || !p.withheld.empty();
+  if (!problem.Evaluate(eval, nullptr, need_residuals ? &adjusted_residuals : nullptr, nullptr, &crs_main)) {
     out.note = "the Jacobian could not be evaluated at the solution";
     return out;
   }
@@ -390,6 +500,7 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   }
 
   if (!p.groups.empty()) GroupRedundancies(p, j, n3, coupling, adjusted_residuals, &out);
+  if (!p.withheld.empty()) WithholdPoints(p, j, n3, adjusted_residuals, &out);
 
   if (!p.checks.empty() && !CheckCovariances(p, eval, &out)) return out;
 

@@ -328,6 +328,12 @@ void AddLeaveOneOut(const GeoreferenceReport& r, nlohmann::json* out) {
       lj["note"] = "each control point withheld from its own adjustment and triangulated as a check point: "
                    "residuals the adjustment did not pull towards zero";
       lj["adjustments"] = loo.adjustments;
+      lj["updated"] = loo.updated;
+      lj["method"] = loo.updated == static_cast<int>(loo.points.size())
+                         ? "block-deletion update of the normal equations at the survey's optimum"
+                         : loo.updated > 0 ? "block-deletion update, and a re-solve from the optimum where it "
+                                             "could not be taken"
+                                           : "a re-solve from the survey's optimum per point";
       lj["iterations"] = loo.iterations;
       lj["time_s"] = loo.time_s;
       j["leave_one_out"] = lj;

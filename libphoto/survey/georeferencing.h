@@ -285,8 +285,9 @@ struct LeaveOneOut {
   std::string note;  // why not, when !computed
   std::vector<GroundPointResult> points;  // role kControl; d_m as a check point
   AccuracyStats stats;
-  int adjustments = 0;
-  int iterations = 0;  // of every withheld point's re-solve, together
+  int adjustments = 0;  // solves: the one the updates come from, and re-solves
+  int updated = 0;      // points from the block-deletion update, without a re-solve
+  int iterations = 0;  // of every solve, together
   double time_s = 0.0;
 };
 
