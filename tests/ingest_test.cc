@@ -95,13 +95,17 @@ TEST(ImageMetadata, RollingShutterTagsRoundTripAsASequoiaWritesThem) {
   EXPECT_DOUBLE_EQ(stated->readout_time_s, 0.0475);
   EXPECT_DOUBLE_EQ(stated->east_mps, 2.09);
   EXPECT_DOUBLE_EQ(stated->north_mps, 12.59);
-  // A readout without a velocity (or none at all) states no motion.
+  // A readout without a velocity states no motion; a velocity without a
+  // readout states the motion, its readout left to be estimated (0).
   ImageMetadata readout_only = m;
   readout_only.imu_linear_velocity_mps.clear();
   EXPECT_FALSE(RollingShutterStatedBy(readout_only).has_value());
-  ImageMetadata still = m;
-  still.line_readout_time_s = 0.0;
-  EXPECT_FALSE(RollingShutterStatedBy(still).has_value());
+  ImageMetadata velocity_only = m;
+  velocity_only.line_readout_time_s.reset();
+  const auto moving = RollingShutterStatedBy(velocity_only);
+  ASSERT_TRUE(moving.has_value());
+  EXPECT_EQ(moving->readout_time_s, 0.0);
+  EXPECT_DOUBLE_EQ(moving->north_mps, 12.59);
 }
 
 // Parrot Sequoia (the hard set's first photo, ../shared/data/hard_garfield):

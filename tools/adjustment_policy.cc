@@ -82,8 +82,10 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
   cmd->add_option("--rolling-shutter", a->rolling_shutter,
                   "auto: photos that state their rolling shutter's readout time and their velocity (Parrot's "
                   "Camera:LineReadoutTime and Camera:IMULinearVelocity) are adjusted with each row exposed where "
-                  "the camera was; off: every photo taken as a global shutter's (report.json adjustment.shutter)")
-      ->check(CLI::IsMember({"auto", "off"}))
+                  "the camera was; estimate: the same, and each camera group's readout time estimated in the "
+                  "adjustment with its sigma (photos that state a velocity but no readout included); off: every "
+                  "photo taken as a global shutter's (report.json adjustment.shutter)")
+      ->check(CLI::IsMember({"auto", "estimate", "off"}))
       ->capture_default_str();
   cmd->add_option("--function-tolerance", a->function_tolerance,
                   "Solver stops when the cost changes by less than this fraction")
@@ -113,7 +115,8 @@ void ApplyAdjustmentPolicy(const AdjustmentPolicyArgs& a, GeoreferenceOptions* o
   o->bundle.estimate_variance_components = a.variance_components != "stated";
   o->hold_stated_sigmas = a.variance_components == "auto";
   o->leave_one_out = a.leave_one_out == "on";
-  o->model_rolling_shutter = a.rolling_shutter == "auto";
+  o->model_rolling_shutter = a.rolling_shutter != "off";
+  o->estimate_readout = a.rolling_shutter == "estimate";
   if (!a.gnss_lever_arm.empty()) {
     const auto l = ParseVector3(a.gnss_lever_arm);
     if (!l) throw InvalidArgument("--gnss-lever-arm: expected 'x,y,z' in metres, got '" + a.gnss_lever_arm + "'");

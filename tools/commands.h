@@ -35,7 +35,7 @@ struct AdjustmentPolicyArgs {
   bool zero_heights_are_heights = false;
   std::string variance_components = "auto";  // auto, estimate, stated
   std::string leave_one_out = "off";  // on, off
-  std::string rolling_shutter = "auto";  // auto, off
+  std::string rolling_shutter = "auto";  // auto, estimate, off
   std::string camera_file;            // a calibration certificate (camera_file.h)
   std::string gnss_lever_arm;         // "x,y,z" metres in the camera frame; empty: none
   double function_tolerance = SurveyBundleOptions().function_tolerance;

@@ -444,7 +444,7 @@ WithheldPoint WithheldOf(ceres::Problem* problem, const internal::PrecisionProbl
 
 BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, const std::vector<char>& image_used,
                                    const std::vector<char>& point_used,
-                                   std::vector<std::array<double, 4>>& rotations,
+                                   std::vector<std::array<double, 4>>& rotations, std::vector<double>* readout,
                                    const std::vector<std::pair<ceres::ResidualBlockId, int>>& mark_blocks,
                                    const std::function<ceres::LossFunction*(double)>& loss_for, double mark_sigma,
                                    const BundleOptions& options, std::vector<Eigen::Vector3d>* gps_offsets,
@@ -486,6 +486,8 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
   for (Eigen::Vector3d& o : *gps_offsets) offset_slot.push_back(add_reduced(o.data()));
   std::vector<int> drift_slot;
   for (Eigen::Vector3d& d : *gps_drift) drift_slot.push_back(add_reduced(d.data()));
+  std::vector<int> readout_slot;
+  for (double& r : *readout) readout_slot.push_back(add_reduced(&r));
 
   std::vector<int> mark_observation;
   std::vector<double> mark_sigma_of;
@@ -552,6 +554,13 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     }
   }
   for (int slot : drift_slot) out.gps_drift_cov.push_back(DriftCovariance(solution, slot, options.gps_drift_axes));
+  out.readout_var.assign(model->cameras.size(), 0.0);
+  for (size_t c = 0; c < readout_slot.size(); ++c) {
+    if (readout_slot[c] >= 0) {
+      const int o = solution.reduced_offset[readout_slot[c]];
+      out.readout_var[c] = solution.reduced_cov(o, o);
+    }
+  }
   out.marks = MarkTests(solution, *model, mark_observation, mark_sigma_of);
   for (size_t k = 0; k < solution.withheld.size(); ++k) {
     out.withheld.push_back(WithheldOf(problem, pp, solution, solution.withheld[k], *model, withheld_points[k],
@@ -648,12 +657,40 @@ void FillCeresSummary(const DenseSchurSummary& s, ceres::Solver::Summary* out) {
 struct ProblemBlocks {
   std::vector<std::array<double, 4>> rotations;
   std::vector<std::vector<double>> merged;
+  // Per camera group, its rolling shutter's readout time when estimated
+  // (BundleOptions::estimate_readout); empty otherwise.
+  std::vector<double> readout;
+  // Whether the group has such a block (it times a separate-block image).
+  std::vector<char> readout_used;
 };
 
-ProblemBlocks MakeProblemBlocks(const SparseModel& model, const BundleConfig& config) {
+// The photos the readout block of their group times: rolling shutters of
+// their own camera blocks (a merged block keeps its stated readout).
+bool TimedByReadout(const Image& image, const BundleConfig& config, size_t i) {
+  return image.rolling_shutter.has_value() && config.image_used[i] && !config.merged[i];
+}
+
+ProblemBlocks MakeProblemBlocks(const SparseModel& model, const BundleConfig& config, bool estimate_readout) {
   ProblemBlocks blocks;
   blocks.rotations.resize(model.images.size());
   blocks.merged.resize(model.images.size());
+  if (estimate_readout) {
+    // The start: the median of the group's stated readouts (zero when none
+    // is stated; the residuals are linear in it).
+    std::vector<std::vector<double>> stated(model.cameras.size());
+    for (size_t i = 0; i < model.images.size(); ++i) {
+      const Image& image = model.images[i];
+      if (TimedByReadout(image, config, i)) stated[image.camera].push_back(image.rolling_shutter->readout_time_s);
+    }
+    blocks.readout.assign(model.cameras.size(), 0.0);
+    blocks.readout_used.assign(model.cameras.size(), 0);
+    for (size_t c = 0; c < stated.size(); ++c) {
+      if (stated[c].empty()) continue;
+      std::nth_element(stated[c].begin(), stated[c].begin() + stated[c].size() / 2, stated[c].end());
+      blocks.readout[c] = stated[c][stated[c].size() / 2];
+      blocks.readout_used[c] = 1;
+    }
+  }
   for (size_t i = 0; i < model.images.size(); ++i) {
     if (!config.image_used[i]) continue;
     const Image& image = model.images[i];
@@ -678,6 +715,9 @@ void WriteBack(const ProblemBlocks& blocks, const BundleConfig& config, const Po
     const bool merged = !blocks.merged[i].empty();
     const double* q = merged ? blocks.merged[i].data() : blocks.rotations[i].data();
     image.pose.cam_from_world = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized();
+    if (!blocks.readout.empty() && TimedByReadout(image, config, i)) {
+      image.rolling_shutter->readout_time_s = blocks.readout[image.camera];
+    }
     if (merged) {
       for (int k = 0; k < 3; ++k) image.pose.centre_in_world[k] = blocks.merged[i][4 + k];
       Camera& camera = model->cameras[image.camera];
@@ -732,15 +772,27 @@ class CeresBundleProblem {
           : is_mark          ? mark_sigma_
                              : options_.observation_sigma_px * Scale(ObservationGroup::kTies);
       const Eigen::Vector3d shift = CentreShiftOf(image, camera, obs);
+      const bool timed = !blocks_->readout.empty() && TimedByReadout(image, config_, obs.image);
       ceres::CostFunction* cost = VisitCameraModel(camera.model, [&](auto m) -> ceres::CostFunction* {
         using Model = decltype(m);
         if (is_merged) return new ReprojectionCostMergedCamera<Model>(obs.xy, sigma, shift);
+        if (timed) {
+          const double fraction = (obs.xy.y() - 0.5 * (camera.height - 1)) / std::max(1, camera.height);
+          return new RollingShutterReprojectionCost<Model>(obs.xy, sigma, fraction, image.rolling_shutter->velocity);
+        }
         return new ReprojectionCost<Model>(obs.xy, sigma, shift);
       });
-      const ceres::ResidualBlockId id =
-          is_merged ? problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->merged[obs.image].data(), point)
-                    : problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->rotations[obs.image].data(),
-                                                image.pose.centre_in_world.data(), point, camera.params.data());
+      ceres::ResidualBlockId id;
+      if (is_merged) {
+        id = problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->merged[obs.image].data(), point);
+      } else if (timed) {
+        id = problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->rotations[obs.image].data(),
+                                       image.pose.centre_in_world.data(), point, camera.params.data(),
+                                       &blocks_->readout[image.camera]);
+      } else {
+        id = problem_.AddResidualBlock(cost, LossFor(sigma), blocks_->rotations[obs.image].data(),
+                                       image.pose.centre_in_world.data(), point, camera.params.data());
+      }
       if (is_mark) mark_blocks_.emplace_back(id, static_cast<int>(k));
       AddToGroup(is_mark ? ObservationGroup::kMarks : ObservationGroup::kTies, id, 0b11);
     }
@@ -953,6 +1005,9 @@ class CeresBundleProblem {
     for (Eigen::Vector3d& d : *gps_drift) {
       if (problem_.HasParameterBlock(d.data())) ordering->AddElementToGroup(d.data(), 1);
     }
+    for (double& r : blocks_->readout) {
+      if (problem_.HasParameterBlock(&r)) ordering->AddElementToGroup(&r, 1);
+    }
     return ordering;
   }
 
@@ -1080,7 +1135,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   result.num_images = config.num_images;
   result.refined_params = config.refined;
   const Pose pose_a = config.image_a >= 0 ? model->images[config.image_a].pose : Pose();
-  ProblemBlocks blocks = MakeProblemBlocks(*model, config);
+  ProblemBlocks blocks = MakeProblemBlocks(*model, config, options.estimate_readout);
 
   if (!precision_pass) {
     std::string why_not;
@@ -1125,7 +1180,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
                               "precision would be relative to them)";
     } else {
       result.posterior = PosteriorPrecision(
-          &problem, model, config.image_used, config.point_used, blocks.rotations, bundle.mark_blocks(),
+          &problem, model, config.image_used, config.point_used, blocks.rotations, &blocks.readout, bundle.mark_blocks(),
           [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offsets, gps_drift,
           bundle.groups(), &result.groups);
     }
@@ -1639,6 +1694,27 @@ void PrecisionWithVarianceComponents(BundleRun* run, const BundleOptions& estima
   p.gps_offset_cov *= p.variance_factor;
   for (Eigen::Matrix3d& c : p.gps_flight_offset_cov) c *= p.variance_factor;
   for (Eigen::Matrix3d& c : p.gps_drift_cov) c *= p.variance_factor;
+  for (double& v : p.readout_var) v *= p.variance_factor;
+}
+
+// Each camera group's estimated readout time (BundleOptions::
+// estimate_readout), as the last solve wrote it into its photos, with its
+// sigma where the precision was computed.
+void ReportReadouts(const SparseModel& model, BundleSummary* summary) {
+  std::vector<BundleSummary::Readout> readouts(model.cameras.size());
+  for (const Image& image : model.images) {
+    if (!image.registered || !image.rolling_shutter) continue;
+    BundleSummary::Readout& r = readouts[image.camera];
+    r.camera = image.camera;
+    ++r.images;
+    r.readout_time_s = image.rolling_shutter->readout_time_s;
+  }
+  const std::vector<double>& var = summary->precision.readout_var;
+  for (BundleSummary::Readout& r : readouts) {
+    if (r.images == 0) continue;
+    if (summary->precision.computed && r.camera < static_cast<int>(var.size())) r.sigma_s = std::sqrt(var[r.camera]);
+    summary->readouts.push_back(r);
+  }
 }
 
 // Weak images (few observations) and tie points seen under small angles.
@@ -1685,6 +1761,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   StartGnssParameters(&run);
   const BundleOptions estimate = SolveWithOutlierRounds(&run);
   if (options.compute_precision) PrecisionWithVarianceComponents(&run, estimate);
+  if (options.estimate_readout) ReportReadouts(*model, &summary);
 
   std::vector<char> used(model->cameras.size(), 0);
   for (const Image& image : model->images) {

@@ -241,6 +241,11 @@ struct BundleOptions {
   // block; no prior) instead of independent points triangulated afterwards
   // with the cameras held.
   bool check_points_in_bundle = false;
+  // The readout time of each camera group's rolling shutter estimated (one
+  // unknown per group, from the photos' stated velocities; their stated
+  // readouts, or zero, the start); otherwise each photo's is held as stated.
+  // BundleSummary::readouts, with its sigma under compute_precision.
+  bool estimate_readout = false;
   // With compute_precision: points (indices in SparseModel::points) each
   // withheld on its own from the precision pass's normal equations, for
   // leave-one-out without a re-solve (BundlePrecision::withheld): their
@@ -356,6 +361,9 @@ struct BundlePrecision {
   // Per flight of the GNSS drift model ((m/s)²); zero rows and columns for
   // axes held.
   std::vector<Eigen::Matrix3d> gps_drift_cov;
+  // Per camera group, the variance of its estimated readout time (s²; zero
+  // where not estimated).
+  std::vector<double> readout_var;
   std::vector<MarkTest> marks;  // control marks, and check marks inside the bundle
   std::vector<WithheldPoint> withheld;  // BundleOptions::withhold_points
   double time_s = 0.0;
@@ -439,6 +447,15 @@ struct BundleSummary {
   // GNSS drift rates per flight (m/s, E N U), when estimated.
   bool gps_drift_estimated = false;
   std::vector<Eigen::Vector3d> gps_drift_m_per_s;
+  // Each camera group's rolling-shutter readout time as estimated
+  // (BundleOptions::estimate_readout); sigma_s 0 without the precision.
+  struct Readout {
+    int camera = -1;  // index into SparseModel::cameras
+    int images = 0;   // adjusted photos whose rows it times
+    double readout_time_s = 0.0;
+    double sigma_s = 0.0;
+  };
+  std::vector<Readout> readouts;
   int num_attitude_priors = 0;
 
   std::string linear_solver;

@@ -129,6 +129,45 @@ class ReprojectionCost final
   Eigen::Vector3d shift_;
 };
 
+// A rolling-shutter observation whose camera group's readout time is
+// estimated: blocks cam_from_world (4), centre (3), point (3), intrinsics
+// (N) and the readout time (1, seconds). The centre at the row is
+// C + r · f · v, f the row's fraction of the readout from its middle
+// (RollingShutterMotion::RowTime / readout) and v the photo's velocity, so
+// ∂res/∂r = ∂res/∂C · f v.
+template <typename Model>
+class RollingShutterReprojectionCost final
+    : public ceres::SizedCostFunction<2, 4, 3, 3, Model::kNumParams, 1> {
+ public:
+  RollingShutterReprojectionCost(const Eigen::Vector2d& observed_xy, double sigma_px, double row_fraction,
+                                 const Eigen::Vector3d& velocity)
+      : observed_(observed_xy), inv_sigma_(1.0 / sigma_px), per_second_(row_fraction * velocity) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Vector3d centre = Eigen::Map<const Eigen::Vector3d>(parameters[1]) + parameters[4][0] * per_second_;
+    double* j_c = jacobians ? jacobians[1] : nullptr;
+    double j_c_local[6];
+    if (jacobians != nullptr && jacobians[4] != nullptr && j_c == nullptr) j_c = j_c_local;
+    if (!EvaluateReprojection<Model>(parameters[0], centre.data(), parameters[2], parameters[3], observed_,
+                                     inv_sigma_, residuals, jacobians ? jacobians[0] : nullptr, j_c,
+                                     jacobians ? jacobians[2] : nullptr, jacobians ? jacobians[3] : nullptr)) {
+      return false;
+    }
+    if (jacobians != nullptr && jacobians[4] != nullptr) {
+      const Eigen::Map<const Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> jc(j_c);
+      Eigen::Map<Eigen::Vector2d> j_r(jacobians[4]);
+      j_r = jc * per_second_;
+    }
+    return true;
+  }
+
+ private:
+  Eigen::Vector2d observed_;
+  double inv_sigma_;
+  Eigen::Vector3d per_second_;  // the centre's shift per second of readout
+};
+
 // One block per image, [cam_from_world (4), centre (3), intrinsics (N)], and
 // the point (3). Used when an image has its camera group to itself (BAL):
 // Ceres then sees one uniform camera block per image and picks its

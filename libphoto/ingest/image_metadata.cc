@@ -229,12 +229,11 @@ const char* const kStatedRollingShutterSource =
     "vertical speed not modelled)";
 
 std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& m) {
-  if (!m.line_readout_time_s || !(*m.line_readout_time_s > 0.0) || m.imu_linear_velocity_mps.size() != 3) {
-    return std::nullopt;
-  }
+  if (m.imu_linear_velocity_mps.size() != 3) return std::nullopt;
   const double east = m.imu_linear_velocity_mps[0], north = m.imu_linear_velocity_mps[1];
   if (!std::isfinite(east) || !std::isfinite(north)) return std::nullopt;
-  return StatedRollingShutter{*m.line_readout_time_s, east, north};
+  const double readout = m.line_readout_time_s && *m.line_readout_time_s > 0.0 ? *m.line_readout_time_s : 0.0;
+  return StatedRollingShutter{readout, east, north};
 }
 
 std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m) {

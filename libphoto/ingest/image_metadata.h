@@ -93,9 +93,10 @@ std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m);
 // positions show them (no published description fixes the axes; the third
 // value's sign is not established either, and is left out: under 1 m/s, it
 // moves a camera by under 5 cm in a 50 ms readout). nullopt unless the
-// photo states both, the readout positive.
+// photo states its velocity; readout_time_s 0 where it states no readout
+// (--rolling-shutter estimate can still find it).
 struct StatedRollingShutter {
-  double readout_time_s = 0.0;
+  double readout_time_s = 0.0;  // 0: not stated
   double east_mps = 0.0, north_mps = 0.0;
 };
 std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& m);

@@ -1433,14 +1433,27 @@ void CheckPointsOnSurvey(const PipelineOptions& o, json* report_out) {
   for (size_t i = 0; i < ingest.names.size(); ++i) ingest_of[ingest.names[i]] = static_cast<int>(i);
   // The rolling shutters the adjustment modelled (adjustment.shutter), so
   // that each mark is seen from where its photo's camera was.
+  // A readout the adjustment estimated replaces the photos' own.
   bool rolling = false;
+  std::map<int, double> estimated_readout;  // by camera id
   if (report.contains("adjustment") && report["adjustment"].contains("shutter")) {
-    for (const json& shutter : report["adjustment"]["shutter"]) rolling |= shutter.value("model", "") == "rolling";
+    for (const json& shutter : report["adjustment"]["shutter"]) {
+      if (shutter.value("model", "") != "rolling") continue;
+      rolling = true;
+      if (shutter.value("readout_estimated", false)) {
+        estimated_readout[shutter.value("camera", -1)] = shutter.value("readout_time_s", 0.0);
+      }
+    }
   }
   if (rolling) {
     std::string source;
     for (const auto& [name, motion] : ingest.RollingShutters(&source)) {
-      if (const auto it = image_of.find(name); it != image_of.end()) model.images[it->second].rolling_shutter = motion;
+      const auto it = image_of.find(name);
+      if (it == image_of.end()) continue;
+      Image& image = model.images[it->second];
+      image.rolling_shutter = motion;
+      const auto r = estimated_readout.find(model.cameras[image.camera].id);
+      if (r != estimated_readout.end()) image.rolling_shutter->readout_time_s = r->second;
     }
   }
   const GcpFile checks = ReadGcpFile(o.checkpoints, o.gcp_pixel_origin);

@@ -379,7 +379,7 @@ nlohmann::json GeoreferenceFingerprint(const PipelineOptions& o) {
           {"mark_sigma_px", g.bundle.mark_sigma_px},
           {"checkpoints_in_bundle", g.bundle.check_points_in_bundle},
           {"leave_one_out", g.leave_one_out},
-          {"rolling_shutter", g.model_rolling_shutter ? "auto" : "off"},
+          {"rolling_shutter", !g.model_rolling_shutter ? "off" : g.estimate_readout ? "estimate" : "auto"},
           {"gnss_lever_arm_m", {g.bundle.gnss_lever_arm_m.x(), g.bundle.gnss_lever_arm_m.y(), g.bundle.gnss_lever_arm_m.z()}},
           {"function_tolerance", g.bundle.function_tolerance},
           {"parameter_tolerance", g.bundle.parameter_tolerance},

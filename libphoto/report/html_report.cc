@@ -673,7 +673,11 @@ std::string CameraCalibration(const json& r) {
       if (shutter.value("camera", -1) != g.value("camera", -2)) continue;
       if (shutter.value("model", "") == "rolling") {
         h << "<p>Shutter: rolling, each row seen from where the camera was when it was read: readout "
-          << Num(1000.0 * Get(shutter, "readout_time_s"), 1) << " ms, " << shutter.value("images", 0)
+          << Num(1000.0 * Get(shutter, "readout_time_s"), 1)
+          << (shutter.value("readout_estimated", false) && Get(shutter, "readout_sigma_s") > 0.0
+                  ? " ± " + Num(1000.0 * Get(shutter, "readout_sigma_s"), 1)
+                  : std::string())
+          << " ms, " << shutter.value("images", 0)
           << " photos at a mean " << Num(Get(shutter, "mean_speed_mps"), 1) << " m/s ("
           << Escape(Text(shutter, "source", "")) << ").</p>";
       } else {

@@ -455,6 +455,9 @@ void AddDatumAndGnss(const GeoreferenceReport& r, nlohmann::json* out) {
                           {"model", sh.model},
                           {"images", sh.images},
                           {"readout_time_s", sh.readout_time_s},
+                          {"readout_estimated", sh.readout_estimated},
+                          {"readout_sigma_s", sh.readout_sigma_s},
+                          {"readout_stated_s", sh.readout_stated_s},
                           {"mean_speed_mps", sh.mean_speed_mps},
                           {"source", sh.source}});
     }

@@ -106,6 +106,12 @@ std::string FormatMetres(double m) {
   return text;
 }
 
+std::string FormatMilliseconds(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f ms", 1000.0 * s);
+  return text;
+}
+
 // Where the GNSS antenna of an image is: its centre plus the lever arm
 // turned into the world (BundleOptions::gnss_lever_arm_m).
 Eigen::Vector3d AntennaOf(const Image& image, const Eigen::Vector3d& lever) {
@@ -396,6 +402,7 @@ GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model, const std::map<std:
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
   AdjustBlock(&s);
   HoldWeakFocal(&s);
+  ReportReadouts(&s);
   ReportGnssAndAttitude(&s);
   ReportProgress(options.progress, 0.9, "check points");
   EvaluateGroundPoints(&s);

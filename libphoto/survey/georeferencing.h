@@ -104,6 +104,11 @@ struct GeoreferenceOptions {
   std::map<std::string, RollingShutterMotion> rolling_shutter;
   std::string rolling_shutter_source;
   bool model_rolling_shutter = true;  // false: every photo a global shutter's
+  // With model_rolling_shutter: each camera group's readout time estimated
+  // in the adjustment, with its sigma (the photos' velocities as stated; their
+  // stated readouts only the start), so photos that state a velocity but no
+  // readout are modelled too.
+  bool estimate_readout = false;
   QualityGates gates;
   // true: every intrinsic is refined where the block determines it: a focal
   // length whose a-priori sigma exceeds weak_focal_rel of its value (the
@@ -300,6 +305,9 @@ struct GeoreferenceReport {
     std::string model = "global";
     int images = 0;  // registered photos with their motion modelled
     double readout_time_s = 0.0;
+    double readout_sigma_s = 0.0;  // when estimated with the precision
+    bool readout_estimated = false;
+    double readout_stated_s = 0.0;  // the photos' own (median; 0: none stated)
     double mean_speed_mps = 0.0;
     std::string source;
   };

@@ -477,7 +477,7 @@ void AttachRollingShutters(SurveyState* s) {
     image.rolling_shutter.reset();
     const auto it = o.rolling_shutter.find(image.name);
     if (s->local || !o.model_rolling_shutter || it == o.rolling_shutter.end() || !image.registered ||
-        it->second.readout_time_s <= 0.0) {
+        (it->second.readout_time_s <= 0.0 && !o.estimate_readout) || it->second.velocity.isZero()) {
       continue;
     }
     image.rolling_shutter = it->second;
@@ -493,8 +493,10 @@ void AttachRollingShutters(SurveyState* s) {
       std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
       group.model = "rolling";
       group.readout_time_s = r[r.size() / 2];
+      group.readout_stated_s = group.readout_time_s;
       group.mean_speed_mps /= group.images;
       group.source = o.rolling_shutter_source;
+      group.readout_estimated = o.estimate_readout;
     } else {
       group.source = o.rolling_shutter.empty() ? "assumed: no photo states a readout time and its velocity"
                      : !o.model_rolling_shutter ? "the photos state a rolling shutter; not modelled (--rolling-shutter off)"

@@ -154,6 +154,10 @@ void AdjustBlock(SurveyState* s);
 // block solved again (auto), or flagged (FOCAL_WEAKLY_DETERMINED).
 void HoldWeakFocal(SurveyState* s);
 
+// Each camera group's readout time as the adjustment estimated it, with its
+// sigma, into the report's shutters (GeoreferenceOptions::estimate_readout).
+void ReportReadouts(SurveyState* s);
+
 // Rejected GPS restored for the report; the drift as estimated (GPS_DRIFT,
 // GPS_TILT_REJECTED) and the adjusted attitude against the flight type
 // (CAMERA_ATTITUDE_IMPLAUSIBLE, GROUND_TILTED_BY_GPS).
@@ -209,5 +213,6 @@ void AttachFlights(SurveyState* s);
 std::string FormatDegrees(double deg);
 std::string FormatPercent(double fraction);
 std::string FormatMetres(double m);
+std::string FormatMilliseconds(double s);
 
 }  // namespace aerotri

@@ -104,6 +104,7 @@ void ChooseRefinement(SurveyState* s) {
   report.geometry = MeasureBlockGeometry(*s->model);
   report.refinement_auto = options.auto_refine;
   s->bundle = options.bundle;
+  s->bundle.estimate_readout = options.model_rolling_shutter && options.estimate_readout;
   if (options.auto_refine) s->bundle.refine_intrinsics = IntrinsicsRefinement::kAll;
   if (!options.auto_refine || !report.geometry.nadir_flat_single_altitude) return;
   bool control_heights = false;
@@ -175,6 +176,21 @@ void AdjustBlock(SurveyState* s) {
         "within " + FormatPercent(report.geometry.roughness_ratio) + " of a plane in each photo) and no control "
         "heights, so f and the flying height are one unknown; the rest refined";
     report.findings.push_back(Finding::Warning("FOCAL_HELD", report.refinement_reason));
+  }
+}
+
+// The readout times the adjustment estimated, into the shutters' report.
+void ReportReadouts(SurveyState* s) {
+  for (const BundleSummary::Readout& r : s->report.bundle.readouts) {
+    if (r.camera < 0 || r.camera >= static_cast<int>(s->report.shutters.size())) continue;
+    GeoreferenceReport::Shutter& shutter = s->report.shutters[r.camera];
+    if (!shutter.readout_estimated) continue;
+    shutter.readout_time_s = r.readout_time_s;
+    shutter.readout_sigma_s = r.sigma_s;
+    shutter.source = "readout estimated in the adjustment (" +
+                     (shutter.readout_stated_s > 0.0 ? "the photos state " + FormatMilliseconds(shutter.readout_stated_s)
+                                                     : std::string("the photos state none")) +
+                     "); velocities from " + shutter.source;
   }
 }
 
