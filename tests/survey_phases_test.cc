@@ -6,6 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <random>
+
 #include "libphoto/base/error.h"
 #include "libphoto/simulate/synthetic_georef.h"
 #include "libphoto/survey/quality_gates.h"
@@ -50,6 +53,49 @@ GcpFile OneTarget(const std::vector<std::pair<std::string, Eigen::Vector2d>>& ma
     file.points.push_back(p);
   }
   return file;
+}
+
+// Velocities from a GPS track: two strips flown at 12 m/s, photos every
+// 2 s, a 25 s turn between them, positions with 5 cm of noise. Inside a
+// strip the central difference gives the velocity to the noise's share
+// (0.05·√2 / 4 s ≈ 0.02 m/s per axis); the strip's ends take their one
+// neighbour's;
+// a photo whose two neighbours disagree (here one across a sharp corner) is
+// left out, as is one without a neighbour within the gap.
+TEST(SurveyPhases, VelocitiesFromTheGpsTrackFollowEachStripAndSkipTheTurns) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  std::vector<TrackFix> fixes;
+  auto add = [&](const std::string& name, const Eigen::Vector3d& p, double t) {
+    fixes.push_back({name, p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)), t});
+  };
+  for (int k = 0; k < 8; ++k) add("east" + std::to_string(k), Eigen::Vector3d(24.0 * k, 0.0, 80.0), 2.0 * k);
+  for (int k = 0; k < 8; ++k) add("west" + std::to_string(k), Eigen::Vector3d(168.0 - 24.0 * k, 40.0, 80.0), 39.0 + 2.0 * k);
+  // A corner: east, then north at once.
+  add("c0", Eigen::Vector3d(0.0, 500.0, 80.0), 100.0);
+  add("c1", Eigen::Vector3d(24.0, 500.0, 80.0), 102.0);
+  add("c2", Eigen::Vector3d(24.0, 524.0, 80.0), 104.0);
+  add("alone", Eigen::Vector3d(900.0, 900.0, 80.0), 200.0);
+  std::shuffle(fixes.begin(), fixes.end(), rng);  // any order in, time order used
+  const std::map<std::string, Eigen::Vector3d> v = VelocitiesFromTrack(fixes, 3.0);
+  double worst = 0.0;
+  for (int k = 0; k < 8; ++k) {
+    ASSERT_TRUE(v.count("east" + std::to_string(k)));
+    ASSERT_TRUE(v.count("west" + std::to_string(k)));
+    // 3 sigma of the difference's noise on each of 3 axes: 0.05·√2 / Δt per
+    // axis, Δt 4 s inside a strip, 2 s (one-sided) at its ends.
+    const double tol = 3.0 * std::sqrt(3.0) * 0.05 * std::sqrt(2.0) / ((k == 0 || k == 7) ? 2.0 : 4.0);
+    const double e = (v.at("east" + std::to_string(k)) - Eigen::Vector3d(12.0, 0.0, 0.0)).norm();
+    const double w = (v.at("west" + std::to_string(k)) - Eigen::Vector3d(-12.0, 0.0, 0.0)).norm();
+    EXPECT_LT(e, tol) << k;
+    EXPECT_LT(w, tol) << k;
+    worst = std::max({worst, e, w});
+  }
+  EXPECT_GT(worst, 0.001);  // the noise shows: nothing was read from the truth
+  EXPECT_EQ(v.count("c1"), 0u);
+  EXPECT_TRUE(v.count("c0") && v.count("c2"));
+  EXPECT_EQ(v.count("alone"), 0u);
+  EXPECT_EQ(v.size(), 18u);
 }
 
 TEST(SurveyPhases, TwoNamesOnOneTargetAreSaidWithTheirLines) {

@@ -468,14 +468,66 @@ void ChooseFrameAndDatum(SurveyState* s) {
 
 // Each rolling-shutter photo's motion (ENU, the adjustment frame), and per
 // camera group what is modelled, for the report.
+std::map<std::string, Eigen::Vector3d> VelocitiesFromTrack(std::vector<TrackFix> fixes, double max_gap_s) {
+  std::sort(fixes.begin(), fixes.end(), [](const TrackFix& a, const TrackFix& b) { return a.time_s < b.time_s; });
+  std::map<std::string, Eigen::Vector3d> out;
+  const int n = static_cast<int>(fixes.size());
+  auto one_sided = [&](int from, int to) -> std::optional<Eigen::Vector3d> {
+    if (to < 0 || to >= n) return std::nullopt;
+    const double dt = fixes[to].time_s - fixes[from].time_s;
+    if (!(std::abs(dt) > 1e-3 && std::abs(dt) <= max_gap_s)) return std::nullopt;
+    return Eigen::Vector3d((fixes[to].position - fixes[from].position) / dt);
+  };
+  for (int k = 0; k < n; ++k) {
+    const auto before = one_sided(k, k - 1), after = one_sided(k, k + 1);
+    if (before && after) {
+      const double sb = before->norm(), sa = after->norm();
+      const bool agree = sb > 0.0 && sa > 0.0 && before->dot(*after) / (sb * sa) > std::cos(20.0 * M_PI / 180.0) &&
+                         std::abs(sb - sa) <= 0.25 * std::max(sb, sa);
+      if (agree) {
+        out[fixes[k].name] =
+            (fixes[k + 1].position - fixes[k - 1].position) / (fixes[k + 1].time_s - fixes[k - 1].time_s);
+      }
+    } else if (before || after) {
+      out[fixes[k].name] = before ? *before : *after;
+    }
+  }
+  return out;
+}
+
+// Photos that state no motion, when the readout is estimated: their
+// velocity from the GPS track (photos at most 3 s apart), by name.
+std::map<std::string, Eigen::Vector3d> TrackVelocities(const SurveyState& s) {
+  std::vector<TrackFix> fixes;
+  for (const Image& image : s.model->images) {
+    const auto it = s.gps.find(image.name);
+    if (!image.gps_prior || it == s.gps.end() || !std::isfinite(it->second.time_s)) continue;
+    fixes.push_back({image.name, image.gps_prior->position, it->second.time_s});
+  }
+  return VelocitiesFromTrack(fixes, 3.0);
+}
+
 void AttachRollingShutters(SurveyState* s) {
   const GeoreferenceOptions& o = s->Options();
+  // With the readout estimated, photos that state no motion move as their
+  // GPS track does.
+  std::map<std::string, Eigen::Vector3d> track;
+  if (o.estimate_readout && o.model_rolling_shutter && !s->local) track = TrackVelocities(*s);
+  std::vector<int> from_track(s->model->cameras.size(), 0);
   std::vector<GeoreferenceReport::Shutter> shutters(s->model->cameras.size());
   std::vector<std::vector<double>> readouts(shutters.size());
   for (size_t c = 0; c < shutters.size(); ++c) shutters[c].camera = s->model->cameras[c].id;
   for (Image& image : s->model->images) {
     image.rolling_shutter.reset();
-    const auto it = o.rolling_shutter.find(image.name);
+    auto it = o.rolling_shutter.find(image.name);
+    if (it == o.rolling_shutter.end() && image.registered && track.count(image.name)) {
+      image.rolling_shutter = RollingShutterMotion{0.0, track.at(image.name)};
+      GeoreferenceReport::Shutter& group = shutters[image.camera];
+      ++group.images;
+      ++from_track[image.camera];
+      group.mean_speed_mps += image.rolling_shutter->velocity.norm();
+      continue;
+    }
     if (s->local || !o.model_rolling_shutter || it == o.rolling_shutter.end() || !image.registered ||
         (it->second.readout_time_s <= 0.0 && !o.estimate_readout) || it->second.velocity.isZero()) {
       continue;
@@ -492,13 +544,20 @@ void AttachRollingShutters(SurveyState* s) {
       std::vector<double>& r = readouts[c];
       std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
       group.model = "rolling";
-      group.readout_time_s = r[r.size() / 2];
+      group.readout_time_s = r.empty() ? 0.0 : r[r.size() / 2];
       group.readout_stated_s = group.readout_time_s;
       group.mean_speed_mps /= group.images;
       group.source = o.rolling_shutter_source;
+      if (from_track[c] > 0) {
+        group.source = (group.source.empty() ? std::string() : group.source + "; ") + std::to_string(from_track[c]) +
+                       " photos' velocities from their GPS track (photos at most 3 s apart)";
+      }
       group.readout_estimated = o.estimate_readout;
     } else {
-      group.source = o.rolling_shutter.empty() ? "assumed: no photo states a readout time and its velocity"
+      group.source = o.estimate_readout && o.model_rolling_shutter && !s->local
+                         ? "assumed: no photo of the group states its velocity, and no GPS track with capture times "
+                           "(photos at most 3 s apart) gives one"
+                     : o.rolling_shutter.empty() ? "assumed: no photo states a readout time and its velocity"
                      : !o.model_rolling_shutter ? "the photos state a rolling shutter; not modelled (--rolling-shutter off)"
                      : s->local                 ? "the photos state a rolling shutter; not modelled in a LOCAL frame"
                                                 : "assumed: no photo of the group states a readout time and its velocity";

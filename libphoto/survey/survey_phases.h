@@ -130,6 +130,19 @@ void ChooseFrameAndDatum(SurveyState* s);
 // points with their marks appended to the model.
 void AttachPriors(SurveyState* s);
 
+// A camera's velocity from its GPS track: the positions (ENU metres) and
+// capture times of the photos before and after it, each within max_gap_s.
+// Both neighbours: the central difference where the two one-sided
+// velocities agree (within 20 degrees and 25 % in speed), nothing where
+// they do not (a turn at a strip's end); one neighbour: its one-sided
+// velocity. By name; photos without a time or a near neighbour left out.
+struct TrackFix {
+  std::string name;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  double time_s = 0.0;
+};
+std::map<std::string, Eigen::Vector3d> VelocitiesFromTrack(std::vector<TrackFix> fixes, double max_gap_s);
+
 // Initial similarity: the model mapped onto the datum, from three or more
 // control points when they hold it (with the control's precision measured,
 // CONTROL_WEAKER_THAN_STATED), else from the GPS (and any control), levelled
