@@ -495,8 +495,13 @@ std::map<std::string, Eigen::Vector3d> VelocitiesFromTrack(std::vector<TrackFix>
   return out;
 }
 
+// The largest time between photos whose positions give a velocity: a
+// drone's strip is straight and steady for longer, and a turn between the
+// two is caught by the one-sided velocities' disagreement.
+constexpr double kTrackMaxGapS = 10.0;
+
 // Photos that state no motion, when the readout is estimated: their
-// velocity from the GPS track (photos at most 3 s apart), by name.
+// velocity from the GPS track (photos at most 10 s apart), by name.
 std::map<std::string, Eigen::Vector3d> TrackVelocities(const SurveyState& s) {
   std::vector<TrackFix> fixes;
   for (const Image& image : s.model->images) {
@@ -504,7 +509,7 @@ std::map<std::string, Eigen::Vector3d> TrackVelocities(const SurveyState& s) {
     if (!image.gps_prior || it == s.gps.end() || !std::isfinite(it->second.time_s)) continue;
     fixes.push_back({image.name, image.gps_prior->position, it->second.time_s});
   }
-  return VelocitiesFromTrack(fixes, 3.0);
+  return VelocitiesFromTrack(fixes, kTrackMaxGapS);
 }
 
 void AttachRollingShutters(SurveyState* s) {
@@ -550,13 +555,13 @@ void AttachRollingShutters(SurveyState* s) {
       group.source = o.rolling_shutter_source;
       if (from_track[c] > 0) {
         group.source = (group.source.empty() ? std::string() : group.source + "; ") + std::to_string(from_track[c]) +
-                       " photos' velocities from their GPS track (photos at most 3 s apart)";
+                       " photos' velocities from their GPS track (photos at most 10 s apart)";
       }
       group.readout_estimated = o.estimate_readout;
     } else {
       group.source = o.estimate_readout && o.model_rolling_shutter && !s->local
                          ? "assumed: no photo of the group states its velocity, and no GPS track with capture times "
-                           "(photos at most 3 s apart) gives one"
+                           "(photos at most 10 s apart) gives one"
                      : o.rolling_shutter.empty() ? "assumed: no photo states a readout time and its velocity"
                      : !o.model_rolling_shutter ? "the photos state a rolling shutter; not modelled (--rolling-shutter off)"
                      : s->local                 ? "the photos state a rolling shutter; not modelled in a LOCAL frame"
