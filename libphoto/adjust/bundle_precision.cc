@@ -83,14 +83,18 @@ struct PointCoupling {
   bool undetermined = false;                        // V_p singular (rays parallel)
 };
 
-// S⁻¹ of a symmetric positive definite S through S = L Lᵀ: L⁻¹ by column
-// blocks (each block's trailing triangle only, nc³/3), then S⁻¹ = L⁻ᵀ L⁻¹ by
-// tiles of the lower triangle (nc³/3), both on `threads` threads; about a
-// quarter of the work of solving against the identity.
-bool InverseByCholesky(const Eigen::MatrixXd& s, int threads, Eigen::MatrixXd* inverse) {
-  const Eigen::LLT<Eigen::MatrixXd> llt(s.selfadjointView<Eigen::Lower>());
+// S⁻¹ of a symmetric positive definite S, in place, through S = L Lᵀ: L
+// over S's lower triangle, L⁻¹ by column blocks (each block's trailing
+// triangle only, nc³/3), then S⁻¹ = L⁻ᵀ L⁻¹ by tiles of the lower triangle
+// (nc³/3) over S, both on `threads` threads; about a quarter of the work of
+// solving against the identity. Two n x n matrices at most (S and L⁻¹)
+// where a copy of S for the factor and another for the inverse made four:
+// at 1,000 photos (6,000 reduced parameters) each is 288 MB.
+bool InverseByCholesky(Eigen::MatrixXd* s_inout, int threads) {
+  Eigen::MatrixXd& s = *s_inout;
+  Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(s);  // in place: S's lower triangle becomes L
   if (llt.info() != Eigen::Success) return false;
-  const Eigen::MatrixXd& l = llt.matrixLLT();  // lower triangle holds L
+  const Eigen::MatrixXd& l = s;
   const Eigen::Index n = s.rows();
   const Eigen::Index b = 96;
   const Eigen::Index blocks = (n + b - 1) / b;
@@ -104,7 +108,8 @@ bool InverseByCholesky(const Eigen::MatrixXd& s, int threads, Eigen::MatrixXd* i
     l.block(c0, c0, m, m).triangularView<Eigen::Lower>().solveInPlace(x);
     l_inv.block(c0, c0, m, w) = x;
   });
-  inverse->resize(n, n);
+  // L is no longer needed: S⁻¹ overwrites it.
+  Eigen::MatrixXd* inverse = s_inout;
   std::vector<std::pair<Eigen::Index, Eigen::Index>> tiles;
   for (Eigen::Index i = 0; i < blocks; ++i) {
     for (Eigen::Index j = 0; j <= i; ++j) tiles.emplace_back(i, j);
@@ -481,7 +486,8 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   const std::vector<PointCoupling> coupling = EliminatePoints(j, np, n3, &s, &out.undetermined_points);
 
   if (nc > 0) {
-    if (!InverseByCholesky(s, p.num_threads, &out.reduced_cov)) {
+    out.reduced_cov = std::move(s);
+    if (!InverseByCholesky(&out.reduced_cov, p.num_threads)) {
       out.note = "the reduced normal equations are singular: the datum or some intrinsics are not determined";
       return out;
     }
