@@ -84,15 +84,7 @@ TEST(BundleAdjuster, GpsPriorsAnchorTheDatum) {
   const SyntheticSurvey survey = MakeSyntheticSurvey(o);
   SparseModel model = survey.observed;
   std::mt19937 rng(12);
-  std::normal_distribution<double> g(0.0, 1.0);
-  for (size_t i = 0; i < model.images.size(); ++i) {
-    PositionPrior prior;
-    prior.position = survey.truth.images[i].pose.centre_in_world +
-                     Eigen::Vector3d(0.05 * g(rng), 0.05 * g(rng), 0.1 * g(rng));
-    prior.sigma_h_m = 0.05;
-    prior.sigma_v_m = 0.1;
-    model.images[i].gps_prior = prior;
-  }
+  testing::AddGpsPriors(&model, survey.truth, rng, 0.05, 0.1);
   testing::Perturb(&model, rng, 1.0, 0.3, 0.5, 0.0);
   BundleOptions options;
   options.refine_intrinsics = IntrinsicsRefinement::kNone;

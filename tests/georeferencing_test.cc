@@ -636,11 +636,16 @@ TEST(Georeferencing, SigmasInTheControlFileWeighTheirObservations) {
 // carries them, free points in the bundle.
 class LeaveOneOutModes : public ::testing::TestWithParam<bool> {};
 
-TEST_P(LeaveOneOutModes, EqualsSeparateAdjustments) {
+// Six control points, four check points, 700 tie points.
+SyntheticGeoref LeaveOneOutScene() {
   SyntheticSurveyOptions so = SurveyOptions(91);
   so.num_tie_points = 700;
   so.num_control_points = 6;
-  const SyntheticGeoref scene = MakeSyntheticGeoref(so, {});
+  return MakeSyntheticGeoref(so, {});
+}
+
+TEST_P(LeaveOneOutModes, EqualsSeparateAdjustments) {
+  const SyntheticGeoref scene = LeaveOneOutScene();
   GeoreferenceOptions options = Options();
   options.leave_one_out = true;
   options.bundle.check_points_in_bundle = GetParam();
@@ -692,10 +697,7 @@ INSTANTIATE_TEST_SUITE_P(Georeferencing, LeaveOneOutModes, ::testing::Values(fal
 
 // Too few control points to withhold one: said, not faked.
 TEST(Georeferencing, LeaveOneOutNeedsFourControlPoints) {
-  SyntheticSurveyOptions so = SurveyOptions(91);
-  so.num_tie_points = 700;
-  so.num_control_points = 6;
-  const SyntheticGeoref scene = MakeSyntheticGeoref(so, {});
+  const SyntheticGeoref scene = LeaveOneOutScene();
   GeoreferenceOptions options = Options();
   GcpFile three = scene.control;
   three.points.resize(3);

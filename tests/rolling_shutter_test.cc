@@ -86,15 +86,9 @@ struct Adjusted {
 Adjusted AdjustWithGps(const SyntheticSurvey& survey, bool model_motion) {
   SparseModel model = survey.observed;
   std::mt19937 rng(21);
-  std::normal_distribution<double> g(0.0, 1.0);
-  for (size_t i = 0; i < model.images.size(); ++i) {
-    PositionPrior prior;
-    prior.position = survey.truth.images[i].pose.centre_in_world +
-                     Eigen::Vector3d(0.05 * g(rng), 0.05 * g(rng), 0.1 * g(rng));
-    prior.sigma_h_m = 0.05;
-    prior.sigma_v_m = 0.1;
-    model.images[i].gps_prior = prior;
-    if (!model_motion) model.images[i].rolling_shutter.reset();
+  testing::AddGpsPriors(&model, survey.truth, rng, 0.05, 0.1);
+  for (Image& image : model.images) {
+    if (!model_motion) image.rolling_shutter.reset();
   }
   testing::Perturb(&model, rng, 0.5, 0.3, 0.3, 0.0);
   const BundleSummary summary = AdjustBundle(&model, BundleOptions{});
@@ -110,16 +104,8 @@ Adjusted AdjustEstimatingReadout(const SyntheticSurvey& survey, BundleSummary::R
                                  bool velocity_from_track = false) {
   SparseModel model = survey.observed;
   std::mt19937 rng(21);
-  std::normal_distribution<double> g(0.0, 1.0);
-  for (size_t i = 0; i < model.images.size(); ++i) {
-    PositionPrior prior;
-    prior.position = survey.truth.images[i].pose.centre_in_world +
-                     Eigen::Vector3d(0.05 * g(rng), 0.05 * g(rng), 0.1 * g(rng));
-    prior.sigma_h_m = 0.05;
-    prior.sigma_v_m = 0.1;
-    model.images[i].gps_prior = prior;
-    model.images[i].rolling_shutter->readout_time_s = 0.0;
-  }
+  testing::AddGpsPriors(&model, survey.truth, rng, 0.05, 0.1);
+  for (Image& image : model.images) image.rolling_shutter->readout_time_s = 0.0;
   if (velocity_from_track) {
     // The photos state no velocity: it comes from their GPS positions and
     // capture times (each strip flown at the survey's speed, a minute's

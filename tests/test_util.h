@@ -48,6 +48,21 @@ class TempDir {
   std::filesystem::path path_;
 };
 
+// A GPS prior on every image: its true centre plus Gaussian noise of sigma_h
+// east and north and sigma_v up, stated with those sigmas.
+inline void AddGpsPriors(SparseModel* model, const SparseModel& truth, std::mt19937& rng, double sigma_h,
+                         double sigma_v) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (size_t i = 0; i < model->images.size(); ++i) {
+    PositionPrior prior;
+    prior.position = truth.images[i].pose.centre_in_world +
+                     Eigen::Vector3d(sigma_h * g(rng), sigma_h * g(rng), sigma_v * g(rng));
+    prior.sigma_h_m = sigma_h;
+    prior.sigma_v_m = sigma_v;
+    model->images[i].gps_prior = prior;
+  }
+}
+
 // Perturbs every pose, point and the intrinsics' focal length: the initial
 // guess of an adjustment test.
 inline void Perturb(SparseModel* model, std::mt19937& rng, double centre_m, double rotation_deg,
