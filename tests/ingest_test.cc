@@ -143,6 +143,41 @@ TEST(ImageMetadata, ParrotSequoiaSaysItsAttitudeAccuracyReadoutAndCalibration) {
   EXPECT_EQ(sigmas->source, "exif+accuracy");
 }
 
+// The Sequoia's factory calibration becomes its camera group's initial
+// intrinsics at the working size, and its focal length a measured one (the
+// adjustments' prior). Expected from the tags by hand: EXIF's focal-plane
+// resolution is 746.3 px/mm; f = 4.812073 mm x 746.3 = 3591.2 px, the
+// principal point (3.042001, 2.280612) mm x 746.3 - 0.5 = (2269.8, 1701.5)
+// px; at 1600 / 4608 of the size: f 1246.9, (787.8, 590.5).
+TEST(Ingest, ParrotSequoiaFactoryCalibrationStartsItsCameraGroup) {
+  const std::filesystem::path set = testing::SharedData("hard_garfield");
+  if (set.empty()) GTEST_SKIP() << "../shared/data/hard_garfield is absent";
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "images");
+  const std::string name = "IMG_161122_163234_0000_RGB.JPG";
+  std::filesystem::create_symlink(set / "images" / name, dir / "images" / name);
+  IngestOptions o;
+  o.images_dir = dir / "images";
+  o.max_dimension = 1600;
+  const IngestRecord r = IngestSurveyImages(o, nullptr);
+  ASSERT_EQ(r.groups.size(), 1u);
+  const CameraGroup& g = r.groups[0];
+  EXPECT_TRUE(g.calibration_stated);
+  EXPECT_TRUE(g.focal_measured);
+  EXPECT_NE(g.focal_source.find("Camera:PerspectiveFocalLength"), std::string::npos) << g.focal_source;
+  const std::vector<double>& p = g.camera.params;
+  EXPECT_NEAR(p[0], 1246.9, 0.1);
+  EXPECT_NEAR(p[1], 787.8, 0.1);
+  EXPECT_NEAR(p[2], 590.5, 0.1);
+  EXPECT_DOUBLE_EQ(p[3], 0.178441961);  // k1 .. p2: unitless, unscaled
+  EXPECT_DOUBLE_EQ(p[5], 0.402026402);
+  EXPECT_DOUBLE_EQ(p[7], -0.000653429);
+  // Round trip through ingest.json keeps it.
+  const IngestRecord back = IngestRecordFromJson(ToJson(r), "ingest.json");
+  EXPECT_TRUE(back.groups[0].calibration_stated);
+  EXPECT_EQ(back.groups[0].camera.params, p);
+}
+
 // DJI's further drone-dji tags (as DJI's Mavic 3M image processing guide and
 // ExifTool's DJI table name them), in a faithfully constructed packet: the
 // aircraft's attitude and speeds, the factory calibration, RTK deviations
@@ -177,6 +212,14 @@ TEST(ImageMetadata, DjiSaysItsFlightAttitudeSpeedsCalibrationAndRtkDeviations) {
   EXPECT_NEAR(sigmas->h_m, std::hypot(0.01041, 0.01163) / std::sqrt(2.0), 1e-12);
   EXPECT_DOUBLE_EQ(sigmas->v_m, 0.02232);
   EXPECT_EQ(sigmas->source, "exif+rtk");
+  // The factory calibration: pixels from the image's corner, to aerotri's
+  // pixel centres; no distortion stated.
+  const auto calibration = CalibrationStatedBy(m, 0.0);
+  ASSERT_TRUE(calibration.has_value());
+  EXPECT_DOUBLE_EQ(calibration->focal_px, 3666.666504);
+  EXPECT_DOUBLE_EQ(calibration->cx_px, 2735.5);
+  EXPECT_DOUBLE_EQ(calibration->cy_px, 1823.5);
+  EXPECT_TRUE(calibration->distortion.empty());
   // A malformed number is no number, not a guess.
   WriteJpegWithExif(dir / "bad.jpg", image, {{"EXIF_Make", "DJI"}}, 90,
                     "<x:xmpmeta xmlns:drone-dji=\"http://www.dji.com/drone-dji/1.0/\" drone-dji:FlightXSpeed=\"9.8m\"/>");

@@ -236,6 +236,29 @@ std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& 
   return StatedRollingShutter{readout, east, north};
 }
 
+std::optional<StatedCalibration> CalibrationStatedBy(const ImageMetadata& m, double pixel_size_mm) {
+  if (m.perspective_focal_mm && *m.perspective_focal_mm > 0.0 && m.principal_point_mm.size() == 2 &&
+      pixel_size_mm > 0.0) {
+    StatedCalibration c;
+    c.focal_px = *m.perspective_focal_mm / pixel_size_mm;
+    c.cx_px = m.principal_point_mm[0] / pixel_size_mm - 0.5;
+    c.cy_px = m.principal_point_mm[1] / pixel_size_mm - 0.5;
+    c.distortion = m.perspective_distortion;
+    c.source = "the photos' Pix4D camera tags (Camera:PerspectiveFocalLength, Camera:PrincipalPoint" +
+               std::string(c.distortion.empty() ? "" : ", Camera:PerspectiveDistortion") + ")";
+    return c;
+  }
+  if (m.calibrated_focal_px && *m.calibrated_focal_px > 0.0 && m.calibrated_cx_px && m.calibrated_cy_px) {
+    StatedCalibration c;
+    c.focal_px = *m.calibrated_focal_px;
+    c.cx_px = *m.calibrated_cx_px - 0.5;
+    c.cy_px = *m.calibrated_cy_px - 0.5;
+    c.source = "the photos' DJI tags (drone-dji:CalibratedFocalLength, CalibratedOpticalCenterX / Y)";
+    return c;
+  }
+  return std::nullopt;
+}
+
 std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m) {
   constexpr double kFloor = 0.005;
   if (m.rtk_std_lat_m && m.rtk_std_lon_m && m.rtk_std_hgt_m && *m.rtk_std_lat_m > 0 && *m.rtk_std_lon_m > 0 &&

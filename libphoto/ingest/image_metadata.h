@@ -103,6 +103,24 @@ std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& 
 // Where RollingShutterStatedBy's figures come from, in words (for reports).
 extern const char* const kStatedRollingShutterSource;
 
+// The factory calibration a photo states, in the stored image's pixels
+// (aerotri's convention: 0 is the centre of the first pixel):
+// - Pix4D camera tags (Parrot Sequoia, Anafi): PerspectiveFocalLength and
+//   PrincipalPoint in mm from the sensor's top-left corner, divided by the
+//   pixel pitch (pixel_size_mm, from EXIF's focal-plane resolution; without
+//   it nothing is stated), and PerspectiveDistortion's R1, R2, R3, T1, T2
+//   as Brown's k1, k2, k3, p1, p2 (Pix4D's perspective model is Brown's on
+//   normalised coordinates);
+// - DJI: CalibratedFocalLength and CalibratedOpticalCenterX / Y, in pixels
+//   from the image's corner (no distortion: DewarpData is not read).
+// nullopt when the photo states no focal length this way.
+struct StatedCalibration {
+  double focal_px = 0.0, cx_px = 0.0, cy_px = 0.0;
+  std::vector<double> distortion;  // k1, k2, k3, p1, p2; empty: not stated
+  std::string source;              // the tags, for people
+};
+std::optional<StatedCalibration> CalibrationStatedBy(const ImageMetadata& m, double pixel_size_mm);
+
 // Throws IoError naming the path when GDAL cannot open the file as an image
 // (missing, corrupt, not an image).
 ImageMetadata ReadImageMetadata(const std::filesystem::path& path);

@@ -161,6 +161,20 @@ CameraGroup NewCameraGroup(const std::string& key, const ImageMetadata& m, int w
   g.focal_source = focal.source;
   g.focal_measured = focal.Measured();
   g.pixel_size_mm = focal.pixel_size_mm * m.width / ww;
+  // The camera's own factory calibration, where it states one: the start of
+  // every adjustment and, as a measured focal length, its prior.
+  if (const auto stated = CalibrationStatedBy(m, focal.pixel_size_mm)) {
+    const double scale = static_cast<double>(ww) / m.width;
+    std::vector<double>& p = g.camera.params;
+    p[0] = stated->focal_px * scale;
+    p[1] = (stated->cx_px + 0.5) * scale - 0.5;
+    p[2] = (stated->cy_px + 0.5) * scale - 0.5;
+    for (size_t k = 0; k < stated->distortion.size() && 3 + k < p.size(); ++k) p[3 + k] = stated->distortion[k];
+    g.focal_source = stated->source;
+    g.focal_measured = true;
+    g.calibration_stated = true;
+    return g;
+  }
   if (!focal.Measured()) warnings->push_back("camera '" + m.make + " " + m.model + "': " + focal.source);
   return g;
 }
@@ -343,6 +357,7 @@ json ToJson(const IngestRecord& r) {
                       {"params", g.camera.params},
                       {"focal_source", g.focal_source},
                       {"focal_measured", g.focal_measured},
+                      {"calibration_stated", g.calibration_stated},
                       {"images", g.images}});
     if (g.pixel_size_mm > 0) groups.back()["pixel_size_mm"] = g.pixel_size_mm;
   }
@@ -398,6 +413,7 @@ IngestRecord IngestRecordFromJson(const json& doc, const std::string& path) {
                                                       : c.focal_source.rfind("EXIF focal length", 0) == 0;
       c.images = g.value("images", 0);
       c.pixel_size_mm = g.value("pixel_size_mm", 0.0);
+      c.calibration_stated = g.value("calibration_stated", false);
       r.groups.push_back(c);
     }
     for (const json& j : doc.at("images")) {

@@ -64,6 +64,9 @@ struct CameraGroup {
   Camera camera;            // initial intrinsics, working px (BROWN)
   std::string focal_source;  // for people
   bool focal_measured = false;  // EXIF measured f (a prior to hold), not a guess
+  // The initial intrinsics are the camera's own factory calibration
+  // (CalibrationStatedBy, the group's first photo; focal_source names it).
+  bool calibration_stated = false;
   // Pixel pitch at the working resolution (mm), where EXIF gives it; 0:
   // unknown. The report states the calibration in mm with it.
   double pixel_size_mm = 0.0;
