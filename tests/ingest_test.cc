@@ -399,6 +399,42 @@ TEST(IngestStage, TruncatedJpegAndSymlinkLoopAreSkippedWithTheirNames) {
       << warnings;
 }
 
+// DJI's calibrated focal length and optical centre start the camera group
+// where they agree with the EXIF-measured focal length (FC300S: 3.61 mm on
+// a 6.17 mm sensor, 234.0 px across 400 px); one tenfold off (another image
+// size) is said and not used.
+TEST(IngestStage, DjiCalibratedFocalLengthStartsTheGroupUnlessItContradictsExif) {
+  testing::TempDir dir;
+  cv::Mat image(300, 400, CV_8UC3, cv::Scalar(40, 120, 200));
+  auto ingest = [&](const std::string& folder, double stated_f) {
+    std::filesystem::create_directories(dir / folder);
+    char xmp[400];
+    std::snprintf(xmp, sizeof xmp,
+                  "<x:xmpmeta xmlns:drone-dji=\"http://www.dji.com/drone-dji/1.0/\" "
+                  "drone-dji:CalibratedFocalLength=\"%.3f\" drone-dji:CalibratedOpticalCenterX=\"203.0\" "
+                  "drone-dji:CalibratedOpticalCenterY=\"148.0\"/>",
+                  stated_f);
+    WriteJpegWithExif(dir / folder / "a.jpg", image,
+                      {{"EXIF_Make", "DJI"}, {"EXIF_Model", "FC300S"}, {"EXIF_FocalLength", "(3.61)"}}, 90, xmp);
+    IngestOptions o;
+    o.images_dir = dir / folder;
+    o.max_dimension = 200;
+    return IngestSurveyImages(o, nullptr);
+  };
+  const IngestRecord agrees = ingest("agrees", 236.0);
+  ASSERT_EQ(agrees.groups.size(), 1u);
+  EXPECT_TRUE(agrees.groups[0].calibration_stated);
+  EXPECT_DOUBLE_EQ(agrees.groups[0].camera.params[0], 118.0);  // at half the size
+  EXPECT_DOUBLE_EQ(agrees.groups[0].camera.params[1], 101.0);  // 203 from the corner: 203 / 2 - 0.5
+  EXPECT_DOUBLE_EQ(agrees.groups[0].camera.params[2], 73.5);    // 148 / 2 - 0.5
+  const IngestRecord contradicts = ingest("contradicts", 2360.0);
+  EXPECT_FALSE(contradicts.groups[0].calibration_stated);
+  EXPECT_NEAR(contradicts.groups[0].camera.params[0], 3.61 / 6.17 * 200, 0.01);
+  bool said = false;
+  for (const std::string& w : contradicts.warnings) said |= w.find("2360.0 px") != std::string::npos;
+  EXPECT_TRUE(said);
+}
+
 TEST(IngestStage, TypedRecordRoundTripsAndRefusesCorruptFiles) {
   testing::TempDir dir;
   std::filesystem::create_directories(dir / "photos");

@@ -162,8 +162,19 @@ CameraGroup NewCameraGroup(const std::string& key, const ImageMetadata& m, int w
   g.focal_measured = focal.Measured();
   g.pixel_size_mm = focal.pixel_size_mm * m.width / ww;
   // The camera's own factory calibration, where it states one: the start of
-  // every adjustment and, as a measured focal length, its prior.
-  if (const auto stated = CalibrationStatedBy(m, focal.pixel_size_mm)) {
+  // every adjustment and, as a measured focal length, its prior. A stated
+  // focal length more than 10 % from the EXIF-measured one belongs to
+  // another image size or unit: said, not used.
+  const auto stated = CalibrationStatedBy(m, focal.pixel_size_mm);
+  if (stated && focal.Measured() && std::abs(stated->focal_px / focal.focal_px - 1.0) > 0.10) {
+    char text[400];
+    std::snprintf(text, sizeof text,
+                  "camera '%s %s': %s give a focal length of %.1f px, %.0f %% from the EXIF-measured %.1f px (%s); "
+                  "not used",
+                  m.make.c_str(), m.model.c_str(), stated->source.c_str(), stated->focal_px,
+                  100.0 * (stated->focal_px / focal.focal_px - 1.0), focal.focal_px, focal.source.c_str());
+    warnings->push_back(text);
+  } else if (stated) {
     const double scale = static_cast<double>(ww) / m.width;
     std::vector<double>& p = g.camera.params;
     p[0] = stated->focal_px * scale;
