@@ -173,6 +173,7 @@ struct RunArgs {
   double global_ba_growth = MapperOptions().global_adjust_growth;
   std::string global_ba_loss = MapperOptions().global_adjust_screening ? "screening" : "huber";
   int iterative_ba_above = MapperOptions().iterative_above_images;
+  std::string mapper_gps = MapperOptions().gps_priors ? "priors" : "check";
   std::string gcp;
   std::string checkpoints;
   std::string gcp_pixel_origin = "centre";

@@ -158,6 +158,12 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
                     "Intermediate global adjustments of models above this many images solve by conjugate "
                     "gradients (the final one is always exact); 0 = never")
         ->check(CLI::NonNegativeNumber)->capture_default_str();
+    cmd->add_option("--mapper-gps", a->mapper_gps,
+                    "The photos' GPS in the reconstruction: 'check' (registrations that disagree with it are "
+                    "undone) or 'priors' (also: once the registered fixes span the block, the model is moved "
+                    "into the GPS frame and every later adjustment holds each fix with its sigmas, and the "
+                    "photos' stated rolling shutter; for blocks that fold or bend)")
+        ->check(CLI::IsMember({"check", "priors"}))->capture_default_str();
   }
   if (groups & kGeoreferenceOptions) {
     cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
@@ -373,6 +379,7 @@ PipelineOptions PipelineOptionsOf(const RunArgs& a, ToolContext& ctx) {
   o.mapper.global_adjust_growth = a.global_ba_growth;
   o.mapper.global_adjust_screening = a.global_ba_loss == "screening";
   o.mapper.iterative_above_images = a.iterative_ba_above;
+  o.mapper.gps_priors = a.mapper_gps == "priors";
   o.gcp = a.gcp;
   o.camera_file = a.policy.camera_file;
   o.checkpoints = a.checkpoints;

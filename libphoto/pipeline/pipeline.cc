@@ -169,6 +169,30 @@ bool RunMatchStage(const PipelineOptions& o) {
   return true;
 }
 
+namespace {
+
+// A camera the photo says looks straight down (Pix4D's camera tags: pitch
+// and roll within 15 degrees of 0, which is nadir) turned to its stated yaw:
+// the image's top toward that azimuth, as consecutive photos of a strip
+// show it (the ground moves down the frame as the aircraft flies on).
+// cam_from_world in ENU; nullopt where the photo states no such attitude.
+std::optional<Eigen::Quaterniond> StatedNadirAttitude(const nlohmann::json& says) {
+  if (!says.contains("camera_yaw_deg") || !says.contains("camera_pitch_deg") || !says.contains("camera_roll_deg")) {
+    return std::nullopt;
+  }
+  if (std::abs(says["camera_pitch_deg"].get<double>()) > 15.0 || std::abs(says["camera_roll_deg"].get<double>()) > 15.0) {
+    return std::nullopt;
+  }
+  const double yaw = says["camera_yaw_deg"].get<double>() * M_PI / 180.0;
+  Eigen::Matrix3d cam_from_world;
+  cam_from_world.row(0) << std::cos(yaw), -std::sin(yaw), 0.0;   // image right
+  cam_from_world.row(1) << -std::sin(yaw), -std::cos(yaw), 0.0;  // image down: away from the yaw
+  cam_from_world.row(2) << 0.0, 0.0, -1.0;                       // optical axis: down
+  return Eigen::Quaterniond(cam_from_world).normalized();
+}
+
+}  // namespace
+
 bool RunReconstructStage(const PipelineOptions& o) {
   const fs::path out_json = o.workspace / "reconstruction.json";
   if (fs::exists(out_json) && !o.force &&
@@ -199,9 +223,25 @@ bool RunReconstructStage(const PipelineOptions& o) {
       if (ingest.gps[i]) gps[i] = frame.EnuFromGeodetic(ingest.gps[i]->position);
     }
   }
+  // With the GPS as priors: each fix's sigmas, and the photos' stated
+  // rolling shutter (velocities in the same ENU frame).
+  MapperPriors priors;
+  if (mo.gps_priors) {
+    std::string source;
+    const std::map<std::string, RollingShutterMotion> shutters = ingest.RollingShutters(&source);
+    for (size_t i = 0; i < gps.size(); ++i) {
+      priors.gps_sigma_h_m.push_back(ingest.gps[i] ? ingest.gps[i]->sigma_h_m : 0.0);
+      priors.gps_sigma_v_m.push_back(ingest.gps[i] ? ingest.gps[i]->sigma_v_m : 0.0);
+      const auto it = shutters.find(ingest.names[i]);
+      priors.rolling_shutter.push_back(o.georef.model_rolling_shutter && it != shutters.end()
+                                           ? std::optional<RollingShutterMotion>(it->second)
+                                           : std::nullopt);
+      priors.attitude.push_back(StatedNadirAttitude(ingest.record.images[i].camera_says));
+    }
+  }
   // Gimbal pitches give an oblique block the vertical its GPS check levels by.
   MapperResult result = ReconstructIncremental(ingest.names, camera_of_image, ingest.cameras, features,
-                                               matches, mo, gps, ingest.GimbalAngles());
+                                               matches, mo, gps, ingest.GimbalAngles(), priors);
   // Registered images only in the COLMAP model.
   SparseModel registered;
   registered.cameras = result.model.cameras;
@@ -228,6 +268,8 @@ bool RunReconstructStage(const PipelineOptions& o) {
   doc.local_adjustments = result.local_adjustments;
   doc.local_adjustment_s = result.local_adjustment_s;
   doc.focal_held = result.focal_held;
+  doc.gps_anchored_at_images = result.gps_anchored_at_images;
+  doc.rolling_shutter_images = result.rolling_shutter_images;
   doc.registered = static_cast<int>(registered.images.size());
   doc.component_images = result.component_images;
   for (size_t i = 0; i < ingest.names.size(); ++i) {
@@ -505,7 +547,9 @@ bool RunGeoreferenceStage(const PipelineOptions& o) {
   report["reconstruction"] = {{"initial_pair", recon.initial_pair},
                               {"tracks", recon.tracks},
                               {"component_images", recon.component_images},
-                              {"focal_held", recon.focal_held}};
+                              {"focal_held", recon.focal_held},
+                              {"gps_anchored_at_images", recon.gps_anchored_at_images},
+                              {"rolling_shutter_images", recon.rolling_shutter_images}};
   if (fs::exists(o.workspace / "matches.json")) {
     const json m = ToJson(LoadMatchRecord(o));
     report["matching"] = {{"strategy", m.at("strategy")},

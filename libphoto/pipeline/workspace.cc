@@ -235,7 +235,10 @@ nlohmann::json ReconstructFingerprint(const PipelineOptions& o) {
           {"local_adjust_iterations", m.local_adjust_iterations},
           {"global_adjust_growth", m.global_adjust_growth},
           {"global_adjust_screening", m.global_adjust_screening},
-          {"iterative_above_images", m.iterative_above_images}};
+          {"iterative_above_images", m.iterative_above_images},
+          {"gps_priors", m.gps_priors},
+          {"gps_prior_min_images", m.gps_prior_min_images},
+          {"rolling_shutter", m.gps_priors && o.georef.model_rolling_shutter}};
 }
 
 namespace {
@@ -311,6 +314,8 @@ nlohmann::json ToJson(const ReconstructionRecord& r) {
           {"local_adjustment_s", r.local_adjustment_s},
           {"registered", r.registered},
           {"focal_held", r.focal_held},
+          {"gps_anchored_at_images", r.gps_anchored_at_images},
+          {"rolling_shutter_images", r.rolling_shutter_images},
           {"component_images", r.component_images},
           {"images", images},
           {"options", r.options}};
@@ -329,6 +334,8 @@ ReconstructionRecord ReconstructionRecordFromJson(const nlohmann::json& doc, con
   r.local_adjustment_s = doc.value("local_adjustment_s", 0.0);
   r.registered = Field<int>(doc, "registered", path);
   r.focal_held = doc.value("focal_held", false);
+  r.gps_anchored_at_images = doc.value("gps_anchored_at_images", 0);
+  r.rolling_shutter_images = doc.value("rolling_shutter_images", 0);
   r.component_images = doc.value("component_images", std::vector<int>{r.registered});
   for (const auto& im : Field<nlohmann::json>(doc, "images", path)) {
     ReconstructionRecord::Image image;

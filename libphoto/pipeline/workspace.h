@@ -103,6 +103,10 @@ struct ReconstructionRecord {
   double local_adjustment_s = 0.0;
   int registered = 0;
   bool focal_held = false;  // by the mapper (nadir, flat ground, one altitude)
+  // The mapper moved the model into the GPS frame at this many registered
+  // images and held the fixes as priors from then on (0: it did not).
+  int gps_anchored_at_images = 0;
+  int rolling_shutter_images = 0;  // photos whose rolling shutter it modelled
   struct Image {
     std::string name;
     bool registered = false;

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <map>
 #include <set>
+#include <type_traits>
 #include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
 
@@ -43,6 +44,8 @@ void MapperOptions::Check() const {
               "at least 1 solver iteration");
   CheckOption(global_adjust_growth > 0.0 && global_adjust_growth <= 10.0, "mapper global_adjust_growth",
               global_adjust_growth, "a fraction of the registered images in (0, 10]");
+  CheckOption(gps_prior_min_images >= 3, "mapper gps_prior_min_images", gps_prior_min_images,
+              "at least 3 images (a similarity to the GPS needs three)");
   CheckOption(iterative_above_images >= 0, "mapper iterative_above_images", iterative_above_images,
               "0 (every adjustment exact) or a number of images");
 }
@@ -57,9 +60,15 @@ class Mapper {
          const std::vector<Camera>& cameras, const std::vector<ImageFeatures>& features,
          const std::vector<PairMatches>& matches, const MapperOptions& options,
          const std::vector<std::optional<Eigen::Vector3d>>& gps_enu,
-         const std::map<std::string, GimbalAttitude>& gimbal = {})
-      : features_(features), matches_(matches), options_(options), gps_(gps_enu), gimbal_(gimbal) {
+         const std::map<std::string, GimbalAttitude>& gimbal = {}, const MapperPriors& priors = {})
+      : features_(features), matches_(matches), options_(options), gps_(gps_enu), gimbal_(gimbal), priors_(priors) {
     gps_.resize(names.size());
+    priors_.gps_sigma_h_m.resize(names.size(), 0.0);
+    priors_.gps_sigma_v_m.resize(names.size(), 0.0);
+    priors_.rolling_shutter.resize(names.size());
+    priors_.attitude.resize(names.size());
+    triangulation_px_ = options.max_reprojection_px;
+    has_prior_.assign(names.size(), 0);
     model_.cameras = cameras;
     for (size_t i = 0; i < names.size(); ++i) {
       Image image;
@@ -85,7 +94,10 @@ class Mapper {
     MapperResult result;
     result.num_tracks = static_cast<int>(tracks_.tracks.size());
     result.dropped_inconsistent_tracks = tracks_.dropped_inconsistent;
-    if (!Initialise(&result.initial_pair)) {
+    const bool from_priors = options_.gps_priors && options_.start_from_priors && StartFromPriors();
+    if (from_priors) {
+      result.initial_pair = "from the photos' GPS and attitude";
+    } else if (!Initialise(&result.initial_pair)) {
       for (size_t i = 0; i < status_.size(); ++i) {
         status_[i].why_not = has_pair_.count(static_cast<int>(i))
                                  ? "no image pair with enough matches and parallax to start from"
@@ -141,10 +153,12 @@ class Mapper {
       }
     }
     Compact();
+    for (const Image& image : model_.images) result.rolling_shutter_images += image.registered && image.rolling_shutter;
     result.model = std::move(model_);
     result.images = status_;
     result.global_adjustments = adjustments_;
     result.focal_held = focal_held_;
+    result.gps_anchored_at_images = anchored_at_;
     result.adjustment_s = adjustment_s_;
     result.adjustment_iterations = adjustment_iterations_;
     result.local_adjustments = local_adjustments_;
@@ -271,7 +285,8 @@ class Mapper {
     for (const TrackElement& e : tracks_.tracks[track]) {
       const Image& image = model_.images[e.image];
       if (!image.registered) continue;
-      views.push_back({&model_.cameras[image.camera], image.pose, Pixel(e.image, e.feature)});
+      const Eigen::Vector2d xy = Pixel(e.image, e.feature);
+      views.push_back({&model_.cameras[image.camera], image.PoseAtRow(xy.y(), model_.cameras[image.camera].height), xy});
       elements.push_back(&e);
     }
     if (views.size() < 2) return -1;
@@ -283,7 +298,7 @@ class Mapper {
     for (size_t v = 0; v < views.size(); ++v) {
       const Eigen::Vector3d pc = views[v].pose.CamFromWorld(t->position);
       if (pc.z() <= 0) continue;
-      if ((views[v].camera->ImageFromCamera(pc) - views[v].xy).norm() <= options_.max_reprojection_px) {
+      if ((views[v].camera->ImageFromCamera(pc) - views[v].xy).norm() <= triangulation_px_) {
         keep.push_back(static_cast<int>(v));
       }
     }
@@ -377,9 +392,9 @@ class Mapper {
     for (size_t k = 0; k < feats.size(); ++k) {
       const int f = feats[k];
       const int p = point_of_track_[tracks_.track_of[image][f]];
-      const Eigen::Vector3d pc = img.pose.CamFromWorld(model_.points[p].position);
-      if (pc.z() <= 0) continue;
       const Eigen::Vector2d xy = Pixel(image, f);
+      const Eigen::Vector3d pc = img.PoseAtRow(xy.y(), camera.height).CamFromWorld(model_.points[p].position);
+      if (pc.z() <= 0) continue;
       if ((camera.ImageFromCamera(pc) - xy).norm() <= options_.max_reprojection_px) {
         model_.observations.push_back({image, p, xy, f});
       }
@@ -620,14 +635,11 @@ class Mapper {
   }
 
   void GlobalAdjust(bool final_round) {
-    BundleOptions o;
-    o.loss = LossType::kHuber;
-    o.loss_scale_px = 1.0;
-    o.outlier_threshold_px = options_.max_reprojection_px;
-    o.max_outlier_rounds = 2;
-    o.num_threads = options_.num_threads;
-    o.max_iterations = final_round ? 100 : 40;
-    o.least_squares_after_screening = options_.global_adjust_screening;
+    if (options_.gps_priors) {
+      if (anchored_at_ == 0) AnchorToGps();
+      if (anchored_at_ > 0) SetPriors();
+    }
+    BundleOptions o = MapperBundleOptions(final_round ? 100 : 40);
     const int n = NumRegistered();
     const bool hold_focal = n >= 5 && HoldFocal();
     focal_held_ = hold_focal;  // the last adjustment's, which the model leaves with
@@ -653,8 +665,89 @@ class Mapper {
     adjustment_iterations_ += summary.iterations;
     ++adjustments_;
     DeregisterAgainstGps();
-    // Points left with fewer than two observations are dropped (their tracks
-    // may be triangulated again); then tracks that can be triangulated now.
+    // Then tracks that can be triangulated now.
+    DropPointsWithoutTwoObservations();
+    for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
+      if (point_of_track_[t] < 0) TriangulateTrack(static_cast<int>(t));
+    }
+  }
+
+  // The start from the photos' GPS and attitude (MapperOptions::
+  // start_from_priors). False, with nothing registered, where fewer than 3
+  // photos state both or fewer than 3 keep enough tie points.
+  bool StartFromPriors() {
+    std::vector<int> placed;
+    std::vector<double> sigmas;
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      if (!gps_[i] || !priors_.attitude[i] || features_[i].keypoints.empty()) continue;
+      Image& image = model_.images[i];
+      image.pose.centre_in_world = *gps_[i];
+      image.pose.cam_from_world = *priors_.attitude[i];
+      image.registered = true;
+      has_prior_[i] = 1;
+      placed.push_back(static_cast<int>(i));
+      sigmas.push_back(SigmaH(static_cast<int>(i)));
+    }
+    if (placed.size() < 3) {
+      for (int i : placed) model_.images[i].registered = false;
+      return false;
+    }
+    std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
+    anchor_threshold_m_ = std::max(10.0, 3.0 * sigmas[sigmas.size() / 2]);
+    anchored_at_ = static_cast<int>(placed.size());
+    from_priors_ = true;
+    for (double px : {100.0, 20.0, options_.max_reprojection_px}) {
+      triangulation_px_ = px;
+      for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
+        if (point_of_track_[t] < 0) TriangulateTrack(static_cast<int>(t));
+      }
+      SetPriors();
+      BundleOptions o = MapperBundleOptions(40);
+      o.loss_scale_px = std::max(1.0, px / 10.0);
+      o.outlier_threshold_px = px;
+      o.refine_intrinsics = IntrinsicsRefinement::kNone;
+      const auto start = std::chrono::steady_clock::now();
+      const BundleSummary summary = AdjustBundle(&model_, o);
+      adjustment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      adjustment_iterations_ += summary.iterations;
+      ++adjustments_;
+      DropPointsWithoutTwoObservations();
+      char text[200];
+      std::snprintf(text, sizeof text, "from the photos' GPS and attitude: %d photos, %d points, RMS %.2f px at %.0f px",
+                    NumRegistered(), NumLivePoints(), summary.final_rms_px, px);
+      ReportProgress(options_.progress, 0.1, text);
+    }
+    triangulation_px_ = options_.max_reprojection_px;
+    // Photos that kept too few tie points are taken out (PnP may bring them
+    // back).
+    std::vector<int> observations(model_.images.size(), 0);
+    for (const Observation& obs : model_.observations) ++observations[obs.image];
+    for (int i : placed) {
+      if (observations[i] >= options_.min_pnp_inliers) {
+        status_[i] = {true, "", observations[i], observations[i]};
+        continue;
+      }
+      model_.images[i].registered = false;
+      std::vector<Observation> kept;
+      for (const Observation& obs : model_.observations) {
+        if (obs.image != i) kept.push_back(obs);
+      }
+      model_.observations.swap(kept);
+    }
+    DropPointsWithoutTwoObservations();
+    if (NumRegistered() >= 3) return true;
+    for (Image& image : model_.images) image.registered = false;
+    model_.points.clear();
+    model_.observations.clear();
+    std::fill(point_of_track_.begin(), point_of_track_.end(), -1);
+    anchored_at_ = 0;
+    from_priors_ = false;
+    return false;
+  }
+
+  // Points left with fewer than two observations are dropped (their tracks
+  // may be triangulated again).
+  void DropPointsWithoutTwoObservations() {
     const std::vector<int> per_point = model_.ObservationsPerPoint();
     std::vector<Observation> kept;
     for (const Observation& obs : model_.observations) {
@@ -665,9 +758,115 @@ class Mapper {
       const int p = point_of_track_[t];
       if (p >= 0 && per_point[p] < 2) point_of_track_[t] = -1;
     }
-    for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
-      if (point_of_track_[t] < 0) TriangulateTrack(static_cast<int>(t));
+  }
+
+  // Moves the model into the GPS frame (see the header) once the registered
+  // images with GPS number gps_prior_min_images and span the block: across
+  // the flight line a tenth of its length, so that the similarity's roll
+  // about that line is determined. The fit is robust (a threshold of 3
+  // sigma of the fixes, at least 10 m: anchor_threshold_m_) and must keep
+  // three quarters of them.
+  void AnchorToGps() {
+    std::vector<Eigen::Vector3d> from, to;
+    std::vector<double> sigmas;
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      if (!model_.images[i].registered || !gps_[i]) continue;
+      from.push_back(model_.images[i].pose.centre_in_world);
+      to.push_back(*gps_[i]);
+      sigmas.push_back(SigmaH(static_cast<int>(i)));
     }
+    if (static_cast<int>(from.size()) < std::max(3, options_.gps_prior_min_images)) return;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& t : to) mean += t.head<2>() / static_cast<double>(to.size());
+    Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
+    for (const auto& t : to) spread += (t.head<2>() - mean) * (t.head<2>() - mean).transpose();
+    const Eigen::Vector2d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues();
+    if (!(ev(0) > 0.01 * ev(1))) return;
+    std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
+    const double threshold = std::max(10.0, 3.0 * sigmas[sigmas.size() / 2]);
+    const auto fit = FitSimilarityRobust(from, to, threshold, 3);
+    if (!fit || 4 * fit->num_inliers < 3 * static_cast<int>(from.size())) {
+      if (fit) {
+        char text[200];
+        std::snprintf(text, sizeof text, "not moved into the GPS frame at %d images: %d of %d fixes within %.0f m",
+                      NumRegistered(), fit->num_inliers, static_cast<int>(from.size()), threshold);
+        ReportProgress(options_.progress, static_cast<double>(NumRegistered()) / model_.images.size(), text);
+      }
+      return;
+    }
+    anchor_threshold_m_ = threshold;
+    const Similarity& s = fit->transform;
+    for (Image& image : model_.images) {
+      image.pose.centre_in_world = s.Apply(image.pose.centre_in_world);
+      image.pose.cam_from_world = (image.pose.cam_from_world * s.rotation.conjugate()).normalized();
+    }
+    for (Point& point : model_.points) point.position = s.Apply(point.position);
+    anchored_at_ = NumRegistered();
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "model moved into the GPS frame at %d images (%d fixes, RMS %.2f m); GPS fixes are priors from now",
+                  anchored_at_, fit->num_inliers, fit->rms_m);
+    ReportProgress(options_.progress, static_cast<double>(NumRegistered()) / model_.images.size(), text);
+  }
+
+  // A fix enters as a prior where the anchored model puts its camera within
+  // the anchoring's threshold of it when it first could (a fix that jumps,
+  // or a false registration, is left to the GPS check); once in, it stays
+  // while its photo is registered, so that one adjustment's excursion does
+  // not drop priors and let the block drift further. Photos placed by their
+  // priors (the start from them) hold theirs from the start.
+  bool PriorUsable(int image) const {
+    return gps_[image] && (has_prior_[image] || (model_.images[image].pose.centre_in_world - *gps_[image]).norm() <=
+                                                     anchor_threshold_m_);
+  }
+  double SigmaH(int image) const {
+    return priors_.gps_sigma_h_m[image] > 0.0 ? priors_.gps_sigma_h_m[image] : 5.0;
+  }
+  double SigmaV(int image) const {
+    return priors_.gps_sigma_v_m[image] > 0.0 ? priors_.gps_sigma_v_m[image] : 10.0;
+  }
+
+  // The anchored model's priors and rolling shutters on its registered
+  // images (an image registered since the last adjustment gets them here).
+  void SetPriors() {
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      Image& image = model_.images[i];
+      image.gps_prior.reset();
+      image.rolling_shutter = priors_.rolling_shutter[i];
+      if (!image.registered) has_prior_[i] = 0;
+      if (!image.registered || !PriorUsable(static_cast<int>(i))) continue;
+      has_prior_[i] = 1;
+      PositionPrior prior;
+      prior.position = *gps_[i];
+      prior.sigma_h_m = SigmaH(static_cast<int>(i));
+      prior.sigma_v_m = SigmaV(static_cast<int>(i));
+      image.gps_prior = prior;
+    }
+  }
+
+  // What every global adjustment of the mapper shares: Huber screening, then
+  // least squares (MapperOptions::global_adjust_screening), outliers beyond
+  // max_reprojection_px; started from the photos' priors, their tilt held to
+  // the stated attitudes' sigma.
+  BundleOptions MapperBundleOptions(int max_iterations) const {
+    BundleOptions o;
+    o.loss = LossType::kHuber;
+    o.loss_scale_px = 1.0;
+    o.outlier_threshold_px = options_.max_reprojection_px;
+    o.max_outlier_rounds = 2;
+    o.num_threads = options_.num_threads;
+    o.max_iterations = max_iterations;
+    o.least_squares_after_screening = options_.global_adjust_screening;
+    if (from_priors_) {
+      o.attitude_prior_sigma_deg = priors_.attitude_sigma_deg;
+      for (size_t i = 0; i < model_.images.size(); ++i) {
+        const auto& q = priors_.attitude[i];
+        // The stated down direction in the camera frame; none without one.
+        o.attitude_prior_down_in_camera.push_back(q ? Eigen::Vector3d(*q * Eigen::Vector3d(0, 0, -1))
+                                                    : Eigen::Vector3d::Zero());
+      }
+    }
+    return o;
   }
 
   // Nadir photos of flat ground at one altitude (block_geometry.h, measured
@@ -812,6 +1011,12 @@ class Mapper {
   std::map<int, bool> has_pair_;
   std::vector<std::optional<Eigen::Vector3d>> gps_;
   std::map<std::string, GimbalAttitude> gimbal_;  // by image name
+  MapperPriors priors_;
+  bool from_priors_ = false;  // started from the photos' GPS and attitude
+  std::vector<char> has_prior_;  // per image: its fix is a prior while it stays registered
+  double triangulation_px_ = 4.0;  // a triangulated view's largest reprojection error
+  int anchored_at_ = 0;  // registered images when the model moved into the GPS frame
+  double anchor_threshold_m_ = 0.0;
   int adjustments_ = 0;
   int adjustment_iterations_ = 0;
   bool focal_held_ = false;
@@ -855,7 +1060,7 @@ std::optional<Similarity> GpsFromModel(const SparseModel& model,
 void AddComponents(const std::vector<std::string>& names, const std::vector<int>& camera_of_image,
                    const std::vector<ImageFeatures>& features, const std::vector<PairMatches>& matches,
                    const MapperOptions& options, const std::vector<std::optional<Eigen::Vector3d>>& gps,
-                   MapperResult* result) {
+                   const MapperPriors& priors, MapperResult* result) {
   const size_t n = names.size();
   const std::set<std::string> struck(result->gps_deregistered.begin(), result->gps_deregistered.end());
   std::set<int> tried;  // images an earlier attempt registered (placed or not): not tried again
@@ -875,11 +1080,16 @@ void AddComponents(const std::vector<std::string>& names, const std::vector<int>
     std::vector<int> sub_cameras;
     std::vector<ImageFeatures> sub_features;
     std::vector<std::optional<Eigen::Vector3d>> sub_gps;
+    MapperPriors sub_priors;
+    auto at = [](const auto& v, int i) { return static_cast<size_t>(i) < v.size() ? v[i] : std::decay_t<decltype(v[i])>{}; };
     for (int i : left) {
       sub_names.push_back(names[i]);
       sub_cameras.push_back(camera_of_image[i]);
       sub_features.push_back(features[i]);
-      sub_gps.push_back(static_cast<size_t>(i) < gps.size() ? gps[i] : std::nullopt);
+      sub_gps.push_back(at(gps, i));
+      sub_priors.gps_sigma_h_m.push_back(at(priors.gps_sigma_h_m, i));
+      sub_priors.gps_sigma_v_m.push_back(at(priors.gps_sigma_v_m, i));
+      sub_priors.rolling_shutter.push_back(at(priors.rolling_shutter, i));
     }
     std::vector<PairMatches> sub_matches;
     for (const PairMatches& m : matches) {
@@ -892,7 +1102,8 @@ void AddComponents(const std::vector<std::string>& names, const std::vector<int>
     if (sub_matches.empty()) return;
     MapperOptions sub_options = options;
     sub_options.progress = nullptr;
-    Mapper mapper(sub_names, sub_cameras, result->model.cameras, sub_features, sub_matches, sub_options, sub_gps);
+    Mapper mapper(sub_names, sub_cameras, result->model.cameras, sub_features, sub_matches, sub_options, sub_gps, {},
+                  sub_priors);
     MapperResult sub = mapper.Run();
     std::vector<int> members;
     for (size_t k = 0; k < left.size(); ++k) {
@@ -961,9 +1172,10 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
                                     const std::vector<PairMatches>& matches,
                                     const MapperOptions& options,
                                     const std::vector<std::optional<Eigen::Vector3d>>& gps_enu,
-                                    const std::map<std::string, GimbalAttitude>& gimbal) {
+                                    const std::map<std::string, GimbalAttitude>& gimbal,
+                                    const MapperPriors& priors) {
   AEROTRI_CHECK(names.size() == camera_of_image.size() && names.size() == features.size());
-  Mapper mapper(names, camera_of_image, cameras, features, matches, options, gps_enu, gimbal);
+  Mapper mapper(names, camera_of_image, cameras, features, matches, options, gps_enu, gimbal, priors);
   MapperResult result = mapper.Run();
   result.component.assign(names.size(), -1);
   int main_images = 0;
@@ -974,7 +1186,7 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
     }
   }
   result.component_images = {main_images};
-  if (main_images >= 2) AddComponents(names, camera_of_image, features, matches, options, gps_enu, &result);
+  if (main_images >= 2) AddComponents(names, camera_of_image, features, matches, options, gps_enu, priors, &result);
   return result;
 }
 

@@ -45,6 +45,20 @@
 // a second failure leaves it out for good. A GPS fix that jumps away from
 // its neighbours' is the GPS's error: the image stays, and georeferencing
 // judges the fix.
+//
+// With MapperOptions::gps_priors the GPS does more than check: once the
+// registered images' fixes span the block (not one line), the model is moved
+// into the GPS frame by a robust similarity, and from then on every global
+// adjustment carries each fix as a prior on its camera centre, with the
+// photo's stated sigmas (MapperPriors), and each rolling-shutter photo's
+// motion during readout (its stated velocity is in that frame). A model that
+// starts to fold or bend, which tie points alone can let happen on weak,
+// flat, rolling-shutter blocks, is held to where the aircraft was. A fix
+// farther from its camera than the anchoring's threshold when it could first
+// enter enters no prior (a GPS blunder, or a false registration that the
+// GPS check then judges). Where the photos state their attitude too, the
+// mapper starts from the fixes and attitudes instead of an image pair
+// (MapperOptions::start_from_priors).
 
 #include <map>
 #include <optional>
@@ -99,6 +113,21 @@ struct MapperOptions {
   // allowed, more as the block grows. false: Huber in every solve.
   bool global_adjust_screening = true;
 
+  // Anchor the model to the GPS (see the header) once this many registered
+  // images with GPS span the block; false: the GPS only checks.
+  bool gps_priors = false;
+  int gps_prior_min_images = 5;
+  // With gps_priors: where three or more photos state a GPS fix and an
+  // attitude (MapperPriors::attitude), start from them instead of an image
+  // pair: each such photo placed where they say, its tracks triangulated,
+  // and the block adjusted with the fixes and the attitudes' tilt as priors,
+  // its residuals screened from coarse to fine (100, 20 px, then
+  // max_reprojection_px); photos that keep too few tie points are taken out
+  // and registered by PnP like the rest. On flat ground seen nadir the
+  // relative pose of an image pair is nearly degenerate, and a model that
+  // starts from one can be wrong from its first photos.
+  bool start_from_priors = true;
+
   int num_threads = 0;
   // Focal-length priors per camera group (see BundleOptions).
   std::vector<double> focal_prior_px;
@@ -106,6 +135,24 @@ struct MapperOptions {
 
   // Throws InvalidArgument naming the option, its value and the range.
   void Check() const;
+};
+
+// What the photos state of themselves beyond their GPS position, for the
+// anchored mapper (MapperOptions::gps_priors); index-aligned with the
+// images, missing entries: none.
+struct MapperPriors {
+  // The GPS fix's standard deviations (m); missing or 0: 5 m and 10 m.
+  std::vector<double> gps_sigma_h_m, gps_sigma_v_m;
+  // The rolling shutter's readout time and the camera's velocity in the GPS
+  // (ENU) frame; applied once the model is in that frame.
+  std::vector<std::optional<RollingShutterMotion>> rolling_shutter;
+  // The camera's attitude as the photo states it (cam_from_world in the GPS
+  // ENU frame): with a GPS fix, where the mapper places the photo to start
+  // from (MapperOptions::start_from_priors).
+  std::vector<std::optional<Eigen::Quaterniond>> attitude;
+  // The stated attitudes' tilt sigma (degrees), the prior on each placed
+  // photo's down direction.
+  double attitude_sigma_deg = 10.0;
 };
 
 struct ImageRegistration {
@@ -140,6 +187,12 @@ struct MapperResult {
   // certificate value: the block is nadir photos of flat ground at one
   // altitude, which cannot determine it.
   bool focal_held = false;
+  // With MapperOptions::gps_priors: the registered images when the model
+  // was moved into the GPS frame and its fixes became priors (0: never; the
+  // model is then in a frame of its own).
+  int gps_anchored_at_images = 0;
+  // Photos whose rolling shutter the anchored adjustments modelled.
+  int rolling_shutter_images = 0;
 };
 
 // Smallest further component that is kept.
@@ -154,6 +207,7 @@ MapperResult ReconstructIncremental(const std::vector<std::string>& names,
                                     const std::vector<PairMatches>& matches,
                                     const MapperOptions& options,
                                     const std::vector<std::optional<Eigen::Vector3d>>& gps_enu = {},
-                                    const std::map<std::string, GimbalAttitude>& gimbal = {});
+                                    const std::map<std::string, GimbalAttitude>& gimbal = {},
+                                    const MapperPriors& priors = {});
 
 }  // namespace aerotri
