@@ -659,17 +659,23 @@ class Mapper {
     if (!final_round && options_.iterative_above_images > 0 && n > options_.iterative_above_images) {
       o.linear_solver = LinearSolverChoice::kIterativeSchur;
     }
-    const auto start = std::chrono::steady_clock::now();
-    const BundleSummary summary = AdjustBundle(&model_, o);
-    adjustment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    adjustment_iterations_ += summary.iterations;
-    ++adjustments_;
+    AdjustGlobally(o);
     DeregisterAgainstGps();
     // Then tracks that can be triangulated now.
     DropPointsWithoutTwoObservations();
     for (size_t t = 0; t < tracks_.tracks.size(); ++t) {
       if (point_of_track_[t] < 0) TriangulateTrack(static_cast<int>(t));
     }
+  }
+
+  // One global adjustment of the model, counted and timed.
+  BundleSummary AdjustGlobally(const BundleOptions& o) {
+    const auto start = std::chrono::steady_clock::now();
+    const BundleSummary summary = AdjustBundle(&model_, o);
+    adjustment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    adjustment_iterations_ += summary.iterations;
+    ++adjustments_;
+    return summary;
   }
 
   // The start from the photos' GPS and attitude (MapperOptions::
@@ -706,11 +712,7 @@ class Mapper {
       o.loss_scale_px = std::max(1.0, px / 10.0);
       o.outlier_threshold_px = px;
       o.refine_intrinsics = IntrinsicsRefinement::kNone;
-      const auto start = std::chrono::steady_clock::now();
-      const BundleSummary summary = AdjustBundle(&model_, o);
-      adjustment_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      adjustment_iterations_ += summary.iterations;
-      ++adjustments_;
+      const BundleSummary summary = AdjustGlobally(o);
       DropPointsWithoutTwoObservations();
       char text[200];
       std::snprintf(text, sizeof text, "from the photos' GPS and attitude: %d photos, %d points, RMS %.2f px at %.0f px",
