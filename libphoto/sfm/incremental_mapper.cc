@@ -54,6 +54,25 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
+// The horizontal spread of positions across their main direction, as the
+// ratio of the smaller eigenvalue of their scatter to the larger (0.01: a
+// tenth of the length across it); -1 when they do not spread at all.
+double AcrossSpreadRatio(const std::vector<Eigen::Vector3d>& positions) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& t : positions) mean += t.head<2>() / static_cast<double>(positions.size());
+  Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
+  for (const auto& t : positions) spread += (t.head<2>() - mean) * (t.head<2>() - mean).transpose();
+  const Eigen::Vector2d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues();
+  return ev(1) > 0.0 ? ev(0) / ev(1) : -1.0;
+}
+
+// How far a camera may lie from its fix for the fix to enter as a prior:
+// 3 times the fixes' median horizontal sigma, at least 10 m.
+double AnchorThreshold(std::vector<double> sigmas_h_m) {
+  std::nth_element(sigmas_h_m.begin(), sigmas_h_m.begin() + sigmas_h_m.size() / 2, sigmas_h_m.end());
+  return std::max(10.0, 3.0 * sigmas_h_m[sigmas_h_m.size() / 2]);
+}
+
 class Mapper {
  public:
   Mapper(const std::vector<std::string>& names, const std::vector<int>& camera_of_image,
@@ -698,8 +717,7 @@ class Mapper {
       for (int i : placed) model_.images[i].registered = false;
       return false;
     }
-    std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
-    anchor_threshold_m_ = std::max(10.0, 3.0 * sigmas[sigmas.size() / 2]);
+    anchor_threshold_m_ = AnchorThreshold(sigmas);
     anchored_at_ = static_cast<int>(placed.size());
     from_priors_ = true;
     for (double px : {100.0, 20.0, options_.max_reprojection_px}) {
@@ -725,19 +743,17 @@ class Mapper {
     std::vector<int> observations(model_.images.size(), 0);
     for (const Observation& obs : model_.observations) ++observations[obs.image];
     for (int i : placed) {
-      if (observations[i] >= options_.min_pnp_inliers) {
-        status_[i] = {true, "", observations[i], observations[i]};
-        continue;
-      }
-      model_.images[i].registered = false;
-      std::vector<Observation> kept;
-      for (const Observation& obs : model_.observations) {
-        if (obs.image != i) kept.push_back(obs);
-      }
-      model_.observations.swap(kept);
+      model_.images[i].registered = observations[i] >= options_.min_pnp_inliers;
+      if (model_.images[i].registered) status_[i] = {true, "", observations[i], observations[i]};
     }
+    std::vector<Observation> kept;
+    for (const Observation& obs : model_.observations) {
+      if (model_.images[obs.image].registered) kept.push_back(obs);
+    }
+    model_.observations.swap(kept);
     DropPointsWithoutTwoObservations();
     if (NumRegistered() >= 3) return true;
+    for (int i : placed) status_[i] = ImageRegistration();
     for (Image& image : model_.images) image.registered = false;
     model_.points.clear();
     model_.observations.clear();
@@ -778,14 +794,8 @@ class Mapper {
       sigmas.push_back(SigmaH(static_cast<int>(i)));
     }
     if (static_cast<int>(from.size()) < std::max(3, options_.gps_prior_min_images)) return;
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    for (const auto& t : to) mean += t.head<2>() / static_cast<double>(to.size());
-    Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
-    for (const auto& t : to) spread += (t.head<2>() - mean) * (t.head<2>() - mean).transpose();
-    const Eigen::Vector2d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues();
-    if (!(ev(0) > 0.01 * ev(1))) return;
-    std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
-    const double threshold = std::max(10.0, 3.0 * sigmas[sigmas.size() / 2]);
+    if (!(AcrossSpreadRatio(to) > 0.01)) return;
+    const double threshold = AnchorThreshold(sigmas);
     const auto fit = FitSimilarityRobust(from, to, threshold, 3);
     if (!fit || 4 * fit->num_inliers < 3 * static_cast<int>(from.size())) {
       if (fit) {
@@ -1041,13 +1051,9 @@ std::optional<Similarity> GpsFromModel(const SparseModel& model,
     axis += model.images[i].pose.cam_from_world.conjugate() * Eigen::Vector3d::UnitZ();
   }
   if (from.size() < 3) return std::nullopt;
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (const auto& t : to) mean += t.head<2>() / static_cast<double>(to.size());
-  Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
-  for (const auto& t : to) spread += (t.head<2>() - mean) * (t.head<2>() - mean).transpose();
-  const Eigen::Vector2d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues();
-  if (ev(1) <= 0.0) return std::nullopt;
-  if (ev(0) > 0.01 * ev(1)) {  // across-strip spread above a tenth of the length
+  const double across = AcrossSpreadRatio(to);
+  if (!(across >= 0.0)) return std::nullopt;
+  if (across > 0.01) {  // across-strip spread above a tenth of the length
     const auto fit = FitSimilarityRobust(from, to, 15.0, 3);
     if (fit && fit->num_inliers >= 3) return fit->transform;
     return std::nullopt;
