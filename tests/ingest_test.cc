@@ -13,6 +13,7 @@
 #include "libphoto/ingest/gps_sources.h"
 #include "libphoto/ingest/ingest.h"
 #include "libphoto/ingest/image_metadata.h"
+#include "libphoto/ingest/readout_table.h"
 #include "libphoto/io/image_writer.h"
 #include "tests/test_util.h"
 
@@ -220,10 +221,48 @@ TEST(ImageMetadata, DjiSaysItsFlightAttitudeSpeedsCalibrationAndRtkDeviations) {
   EXPECT_DOUBLE_EQ(calibration->cx_px, 2735.5);
   EXPECT_DOUBLE_EQ(calibration->cy_px, 1823.5);
   EXPECT_TRUE(calibration->distortion.empty());
+  // The speeds are the rolling shutter's motion: x north, y east (DJI's
+  // N-E-D); a camera the known-camera table lacks has no readout.
+  const auto shutter = RollingShutterStatedBy(m);
+  ASSERT_TRUE(shutter.has_value());
+  EXPECT_DOUBLE_EQ(shutter->north_mps, 9.8);
+  EXPECT_DOUBLE_EQ(shutter->east_mps, -0.3);
+  EXPECT_EQ(shutter->readout_time_s, 0.0);
+  EXPECT_NE(shutter->source.find("drone-dji:FlightXSpeed (north)"), std::string::npos) << shutter->source;
+  EXPECT_NE(shutter->source.find("not in the known-camera table"), std::string::npos) << shutter->source;
+  // A Phantom 4 Pro's camera is in it: 33 ms, its source named.
+  WriteJpegWithExif(dir / "p4p.jpg", image, {{"EXIF_Make", "DJI"}, {"EXIF_Model", "FC6310"}}, 90, xmp);
+  const auto p4p = RollingShutterStatedBy(ReadImageMetadata(dir / "p4p.jpg"));
+  ASSERT_TRUE(p4p.has_value());
+  EXPECT_DOUBLE_EQ(p4p->readout_time_s, 0.033);
+  EXPECT_NE(p4p->source.find("33 ms for the DJI FC6310 from OpenDroneMap's rolling-shutter database"), std::string::npos)
+      << p4p->source;
   // A malformed number is no number, not a guess.
   WriteJpegWithExif(dir / "bad.jpg", image, {{"EXIF_Make", "DJI"}}, 90,
                     "<x:xmpmeta xmlns:drone-dji=\"http://www.dji.com/drone-dji/1.0/\" drone-dji:FlightXSpeed=\"9.8m\"/>");
   EXPECT_FALSE(ReadImageMetadata(dir / "bad.jpg").flight_speed_x_mps.has_value());
+}
+
+// The known-camera readout table: matched on make and model whatever their
+// case and spacing, a two-mode sensor by the capture's size, an unknown
+// camera not guessed.
+TEST(KnownCameraReadout, MatchesMakeAndModelAndTheSensorsMode) {
+  const auto p4 = KnownCameraReadout("DJI", "FC330", 12.0);
+  ASSERT_TRUE(p4.has_value());
+  EXPECT_DOUBLE_EQ(p4->readout_time_s, 0.033);
+  EXPECT_EQ(p4->camera, "DJI FC330");
+  EXPECT_NE(p4->source.find("RSCalibration"), std::string::npos);
+  const auto spaced = KnownCameraReadout(" dji ", "fc3170 ", 12.0);
+  ASSERT_TRUE(spaced.has_value());
+  EXPECT_DOUBLE_EQ(spaced->readout_time_s, 0.027);
+  // Mavic 2 Pro: 16:10 (16.8 MP) against 3:2 (19.9 MP); Mini 3 Pro: 12 MP against 48 MP.
+  EXPECT_DOUBLE_EQ(KnownCameraReadout("Hasselblad", "L1D-20c", 16.8)->readout_time_s, 0.047);
+  EXPECT_DOUBLE_EQ(KnownCameraReadout("Hasselblad", "L1D-20c", 19.9)->readout_time_s, 0.056);
+  EXPECT_DOUBLE_EQ(KnownCameraReadout("DJI", "FC3582", 12.0)->readout_time_s, 0.026);
+  EXPECT_DOUBLE_EQ(KnownCameraReadout("DJI", "FC3582", 48.0)->readout_time_s, 0.060);
+  EXPECT_FALSE(KnownCameraReadout("Parrot", "Sequoia", 16.0).has_value());
+  EXPECT_FALSE(KnownCameraReadout("DJI", "FC63100", 20.0).has_value());
+  EXPECT_FALSE(KnownCameraReadout("", "", 0.0).has_value());
 }
 
 // Found by tests/fuzz/fuzz_exif.cc: an EXIF_PixelXDimension of 1e12 was

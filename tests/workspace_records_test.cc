@@ -119,5 +119,46 @@ TEST(WorkspaceRecords, FingerprintsFollowTheOptionsThatShapeEachProduct) {
   EXPECT_NE(FingerprintChanges(nlohmann::json(), match).find("unrecorded"), std::string::npos);
 }
 
+// The photos' rolling shutters as ingest recorded what they say: a Sequoia's
+// stated readout and IMU velocity, a DJI Phantom 4 Pro's flight speeds (x
+// north, y east) with the known-camera table's 33 ms, a DJI camera the table
+// lacks (readout 0, for --rolling-shutter estimate), and a photo that states
+// no motion (a global shutter). Each source is said once.
+TEST(IngestView, RollingShuttersFromWhatEachPhotoStates) {
+  IngestView view;
+  auto photo = [&](const std::string& name, const std::string& make, const std::string& model,
+                   const nlohmann::json& says) {
+    IngestedImage im;
+    im.name = name;
+    im.make = make;
+    im.model = model;
+    im.width = 5472;
+    im.height = 3648;
+    im.camera_says = says;
+    view.record.images.push_back(im);
+  };
+  photo("sequoia.jpg", "Parrot", "Sequoia", {{"line_readout_time_s", 0.0475}, {"imu_linear_velocity_mps", {2.09, 12.59, 0.61}}});
+  photo("p4p_a.jpg", "DJI", "FC6310", {{"flight_speed_mps", {9.8, -0.3, 0.1}}});
+  photo("p4p_b.jpg", "DJI", "FC6310", {{"flight_speed_mps", {-9.7, 0.4, 0.0}}});
+  photo("unknown.jpg", "DJI", "FC9999", {{"flight_speed_mps", {5.0, 5.0, 0.0}}});
+  photo("still.jpg", "DJI", "FC6310", nlohmann::json::object());
+  std::string source;
+  const std::map<std::string, RollingShutterMotion> motion = view.RollingShutters(&source);
+  ASSERT_EQ(motion.size(), 4u);
+  EXPECT_DOUBLE_EQ(motion.at("sequoia.jpg").readout_time_s, 0.0475);
+  EXPECT_EQ(motion.at("sequoia.jpg").velocity, Eigen::Vector3d(2.09, 12.59, 0.0));
+  EXPECT_DOUBLE_EQ(motion.at("p4p_a.jpg").readout_time_s, 0.033);
+  EXPECT_EQ(motion.at("p4p_a.jpg").velocity, Eigen::Vector3d(-0.3, 9.8, 0.0));
+  EXPECT_EQ(motion.at("p4p_b.jpg").velocity, Eigen::Vector3d(0.4, -9.7, 0.0));
+  EXPECT_EQ(motion.at("unknown.jpg").readout_time_s, 0.0);
+  EXPECT_FALSE(motion.count("still.jpg"));
+  // Three sources, each once: the Sequoia's tags, the P4P's speeds with the
+  // table, the unknown camera's speeds without a readout.
+  EXPECT_NE(source.find("Camera:LineReadoutTime"), std::string::npos) << source;
+  EXPECT_NE(source.find("33 ms for the DJI FC6310"), std::string::npos) << source;
+  EXPECT_NE(source.find("not in the known-camera table"), std::string::npos) << source;
+  EXPECT_EQ(source.find("33 ms"), source.rfind("33 ms")) << source;
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -130,7 +130,7 @@ namespace {
 // GpsFromImages' to name.
 void ReadWhatThePhotosSay(const SparseModel& model, const std::string& images_dir,
                           std::map<std::string, GimbalAttitude>* gimbal,
-                          std::map<std::string, RollingShutterMotion>* shutters) {
+                          std::map<std::string, RollingShutterMotion>* shutters, std::string* shutter_source) {
   for (const Image& image : model.images) {
     const fs::path path = fs::path(images_dir) / image.name;
     if (!fs::exists(path)) continue;  // GpsFromImages has said so
@@ -139,6 +139,9 @@ void ReadWhatThePhotosSay(const SparseModel& model, const std::string& images_di
       if (m.gimbal_pitch_deg && m.gimbal_yaw_deg) (*gimbal)[image.name] = {*m.gimbal_pitch_deg, *m.gimbal_yaw_deg};
       if (const auto stated = RollingShutterStatedBy(m)) {
         (*shutters)[image.name] = {stated->readout_time_s, Eigen::Vector3d(stated->east_mps, stated->north_mps, 0.0)};
+        if (shutter_source->find(stated->source) == std::string::npos) {
+          *shutter_source += (shutter_source->empty() ? "" : " | ") + stated->source;
+        }
       }
     } catch (const Error&) {
       // unreadable: GpsFromImages has said so
@@ -267,8 +270,7 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   // rolling shutters, to adjust with.
   std::map<std::string, GimbalAttitude> gimbal;
   if (!args.images_dir.empty()) {
-    ReadWhatThePhotosSay(model, args.images_dir, &gimbal, &options.rolling_shutter);
-    if (!options.rolling_shutter.empty()) options.rolling_shutter_source = kStatedRollingShutterSource;
+    ReadWhatThePhotosSay(model, args.images_dir, &gimbal, &options.rolling_shutter, &options.rolling_shutter_source);
   }
   if (!args.gps_csv.empty()) {
     const auto csv = ReadGpsFile(args.gps_csv, reference, args.gps_sigma_h_m, args.gps_sigma_v_m);

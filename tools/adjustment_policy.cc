@@ -80,9 +80,11 @@ void AddAdjustmentPolicyOptions(CLI::App* cmd, AdjustmentPolicyArgs* a) {
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   cmd->add_option("--rolling-shutter", a->rolling_shutter,
-                  "auto: photos that state their rolling shutter's readout time and their velocity (Parrot's "
-                  "Camera:LineReadoutTime and Camera:IMULinearVelocity) are adjusted with each row exposed where "
-                  "the camera was; estimate: the same, and each camera group's readout time estimated in the "
+                  "auto: photos that state their velocity (Parrot's Camera:IMULinearVelocity, DJI's "
+                  "FlightXSpeed / FlightYSpeed) and whose readout time is stated (Camera:LineReadoutTime) or in "
+                  "the known-camera table (DJI Phantom 3 / 4, Mavic, Air, Mini, Inspire 1, GoPro: "
+                  "OpenDroneMap's measured figures) are adjusted with each row exposed where the camera was; "
+                  "estimate: the same, and each camera group's readout time estimated in the "
                   "adjustment with its sigma (photos that state a velocity but no readout included); off: every "
                   "photo taken as a global shutter's (report.json adjustment.shutter)")
       ->check(CLI::IsMember({"auto", "estimate", "off"}))

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "libphoto/base/error.h"
+#include "libphoto/ingest/readout_table.h"
 
 namespace aerotri {
 namespace {
@@ -224,16 +225,34 @@ ImageMetadata ReadImageMetadata(const std::filesystem::path& path) {
   return m;
 }
 
-const char* const kStatedRollingShutterSource =
-    "the photos' Pix4D camera tags: Camera:LineReadoutTime (readout), Camera:IMULinearVelocity (east and north; "
-    "vertical speed not modelled)";
-
 std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& m) {
-  if (m.imu_linear_velocity_mps.size() != 3) return std::nullopt;
-  const double east = m.imu_linear_velocity_mps[0], north = m.imu_linear_velocity_mps[1];
-  if (!std::isfinite(east) || !std::isfinite(north)) return std::nullopt;
-  const double readout = m.line_readout_time_s && *m.line_readout_time_s > 0.0 ? *m.line_readout_time_s : 0.0;
-  return StatedRollingShutter{readout, east, north};
+  StatedRollingShutter s;
+  if (m.imu_linear_velocity_mps.size() == 3) {
+    s.east_mps = m.imu_linear_velocity_mps[0];
+    s.north_mps = m.imu_linear_velocity_mps[1];
+    s.source = "velocity: the photos' Pix4D camera tags, Camera:IMULinearVelocity (east and north; vertical speed not "
+               "modelled)";
+  } else if (m.flight_speed_x_mps && m.flight_speed_y_mps) {
+    s.east_mps = *m.flight_speed_y_mps;
+    s.north_mps = *m.flight_speed_x_mps;
+    s.source = "velocity: the photos' DJI tags, drone-dji:FlightXSpeed (north) and FlightYSpeed (east), as DJI's "
+               "Mobile SDK defines the aircraft's velocity (vertical speed not modelled)";
+  } else {
+    return std::nullopt;
+  }
+  if (!std::isfinite(s.east_mps) || !std::isfinite(s.north_mps)) return std::nullopt;
+  if (m.line_readout_time_s && *m.line_readout_time_s > 0.0) {
+    s.readout_time_s = *m.line_readout_time_s;
+    s.source += "; readout: Camera:LineReadoutTime";
+  } else if (const auto known = KnownCameraReadout(m.make, m.model, 1e-6 * m.width * m.height)) {
+    s.readout_time_s = known->readout_time_s;
+    char text[64];
+    std::snprintf(text, sizeof text, "%.0f ms", 1e3 * known->readout_time_s);
+    s.source += "; readout: " + std::string(text) + " for the " + known->camera + " from " + known->source;
+  } else {
+    s.source += "; readout: not stated, not in the known-camera table";
+  }
+  return s;
 }
 
 std::optional<StatedCalibration> CalibrationStatedBy(const ImageMetadata& m, double pixel_size_mm) {

@@ -87,21 +87,27 @@ struct StatedGpsSigmas {
 };
 std::optional<StatedGpsSigmas> GpsSigmasStatedBy(const ImageMetadata& m);
 
-// The rolling shutter a photo states: the readout time (Pix4D camera tags'
-// LineReadoutTime) and the camera's velocity east and north, the first two
-// values of IMULinearVelocity, as the tracks of Parrot Sequoia photos' GPS
-// positions show them (no published description fixes the axes; the third
-// value's sign is not established either, and is left out: under 1 m/s, it
-// moves a camera by under 5 cm in a 50 ms readout). nullopt unless the
-// photo states its velocity; readout_time_s 0 where it states no readout
-// (--rolling-shutter estimate can still find it).
+// The rolling shutter a photo states: the camera's velocity east and north
+// and the readout time. nullopt unless the photo states its velocity:
+// - Pix4D camera tags (Parrot): the first two values of IMULinearVelocity,
+//   east and north, as the tracks of Parrot Sequoia photos' GPS positions
+//   show them (no published description fixes the axes; the third value's
+//   sign is not established either, and is left out: under 1 m/s, it moves
+//   a camera by under 5 cm in a 50 ms readout); the readout from
+//   LineReadoutTime;
+// - DJI: FlightXSpeed and FlightYSpeed, north and east, read as DJI's Mobile
+//   SDK defines the aircraft's velocity (x north, y east, z down; DJI
+//   publishes no description of the XMP tags themselves); the vertical
+//   speed left out as above. A hovering capture states zero.
+// Without a stated readout, the known-camera table's (readout_table.h);
+// else 0 (--rolling-shutter estimate can still find it). `source` says
+// where the velocity and the readout come from.
 struct StatedRollingShutter {
-  double readout_time_s = 0.0;  // 0: not stated
+  double readout_time_s = 0.0;  // 0: not known
   double east_mps = 0.0, north_mps = 0.0;
+  std::string source;
 };
 std::optional<StatedRollingShutter> RollingShutterStatedBy(const ImageMetadata& m);
-// Where RollingShutterStatedBy's figures come from, in words (for reports).
-extern const char* const kStatedRollingShutterSource;
 
 // The factory calibration a photo states, in the stored image's pixels
 // (aerotri's convention: 0 is the centre of the first pixel):

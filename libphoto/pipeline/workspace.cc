@@ -99,17 +99,28 @@ std::map<std::string, GimbalAttitude> IngestView::GimbalAngles() const {
 
 std::map<std::string, RollingShutterMotion> IngestView::RollingShutters(std::string* source) const {
   std::map<std::string, RollingShutterMotion> motion;
+  std::vector<std::string> sources;
   for (const IngestedImage& im : record.images) {
     // What ingest recorded of the tags, read as the photo states them.
     const nlohmann::json& says = im.camera_says;
     ImageMetadata m;
+    m.make = im.make;
+    m.model = im.model;
+    m.width = im.width;
+    m.height = im.height;
     if (says.contains("line_readout_time_s")) m.line_readout_time_s = says["line_readout_time_s"].get<double>();
     if (says.contains("imu_linear_velocity_mps")) m.imu_linear_velocity_mps = says["imu_linear_velocity_mps"].get<std::vector<double>>();
+    if (says.contains("flight_speed_mps")) {
+      const auto speed = says["flight_speed_mps"].get<std::vector<double>>();
+      if (speed.size() == 3) m.flight_speed_x_mps = speed[0], m.flight_speed_y_mps = speed[1], m.flight_speed_z_mps = speed[2];
+    }
     if (const auto stated = RollingShutterStatedBy(m)) {
       motion[im.name] = {stated->readout_time_s, Eigen::Vector3d(stated->east_mps, stated->north_mps, 0.0)};
+      if (std::find(sources.begin(), sources.end(), stated->source) == sources.end()) sources.push_back(stated->source);
     }
   }
-  *source = motion.empty() ? "" : kStatedRollingShutterSource;
+  source->clear();
+  for (const std::string& s : sources) *source += (source->empty() ? "" : " | ") + s;
   return motion;
 }
 
