@@ -615,12 +615,24 @@ RectifiedExtent ExtentOf(const Image& im, const Camera& cam, const Eigen::Matrix
 }
 
 // The remap of a photo into the rectified frame (width x height, principal
-// point cx, cy); -1 outside the photo (remaps to black).
+// point cx, cy); -1 outside the photo (remaps to black). A rolling-shutter
+// photo is remapped as the global-shutter camera at its mid-readout pose
+// would have seen the plane at depth plane_depth along the rectified axis
+// (from plane_origin): each rectified ray meets that plane, and the point
+// is found in the photo at the row whose camera saw it (ProjectIntoImage).
+// Exact on the plane; off it, the error is the camera's motion during the
+// readout times the point's relative height off the plane (2 cm for 0.5 m
+// of motion and 4 % relief).
 void RectificationMap(const Image& im, const Camera& cam, const Eigen::Matrix3d& rect_from_world, double f,
-                      double cx, double cy, int width, int height, double image_scale, cv::Mat* mx, cv::Mat* my) {
+                      double cx, double cy, int width, int height, double image_scale, const Eigen::Vector3d& plane_origin,
+                      double plane_depth, cv::Mat* mx, cv::Mat* my) {
   mx->create(height, width, CV_32F);
   my->create(height, width, CV_32F);
   const Eigen::Matrix3d cam_from_rect = im.pose.cam_from_world.toRotationMatrix() * rect_from_world.transpose();
+  const Eigen::Matrix3d world_from_cam = im.pose.cam_from_world.conjugate().toRotationMatrix();
+  const Eigen::Vector3d zhat = rect_from_world.row(2).transpose();
+  const bool rolling = im.rolling_shutter && im.rolling_shutter->readout_time_s != 0.0 && plane_depth > 0.0;
+  const double centre_depth = zhat.dot(im.pose.centre_in_world - plane_origin);
   for (int v = 0; v < height; ++v) {
     float* px = mx->ptr<float>(v);
     float* py = my->ptr<float>(v);
@@ -630,7 +642,12 @@ void RectificationMap(const Image& im, const Camera& cam, const Eigen::Matrix3d&
         px[u] = py[u] = -1.0f;
         continue;
       }
-      const Eigen::Vector2d xy = cam.ImageFromCamera(ray);
+      Eigen::Vector2d xy = cam.ImageFromCamera(ray);
+      if (rolling) {
+        const Eigen::Vector3d dir = world_from_cam * ray;
+        const double along = zhat.dot(dir);
+        if (along > 1e-6) xy = ProjectIntoImage(cam, im, im.pose.centre_in_world + (plane_depth - centre_depth) / along * dir);
+      }
       if (xy.x() < -0.5 || xy.y() < -0.5 || xy.x() > cam.width - 0.5 || xy.y() > cam.height - 0.5) {
         px[u] = py[u] = -1.0f;
         continue;
@@ -687,6 +704,7 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   }
   if (disparities.size() < 20) return false;
   std::sort(disparities.begin(), disparities.end());
+  const double median_depth = f * baseline / disparities[disparities.size() / 2];  // the plane a rolling shutter is undone on
   const double dlo = disparities[disparities.size() / 50];
   const double dhi = disparities[disparities.size() - 1 - disparities.size() / 50];
   // Photo b's frame is shifted onto a's so that the search starts at
@@ -699,8 +717,8 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   const double offset = 8.0 - std::floor(dlo * 0.85);
   const double cxa = -ea.u0, cxb = cxa - offset, cy = -v0;
   cv::Mat mxa, mya, mxb, myb, ra, rb;
-  RectificationMap(a, ca, rect_from_world, f, cxa, cy, width, height, o.image_scale, &mxa, &mya);
-  RectificationMap(b, cb, rect_from_world, f, cxb, cy, width, height, o.image_scale, &mxb, &myb);
+  RectificationMap(a, ca, rect_from_world, f, cxa, cy, width, height, o.image_scale, ci, median_depth, &mxa, &mya);
+  RectificationMap(b, cb, rect_from_world, f, cxb, cy, width, height, o.image_scale, ci, median_depth, &mxb, &myb);
   cv::remap(img_a, ra, mxa, mya, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
   cv::remap(img_b, rb, mxb, myb, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
   const int min_disp = 0;

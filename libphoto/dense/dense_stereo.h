@@ -14,7 +14,11 @@
 //     x along the baseline), through the exact Brown model of each camera, so
 //     that disparity is horizontal whatever the flight direction. The
 //     rectified frame holds the whole of the first photo, and the second is
-//     shifted onto it so that the disparity search starts at 0.
+//     shifted onto it so that the disparity search starts at 0. A
+//     rolling-shutter photo (Image::rolling_shutter) is rectified as the
+//     global-shutter camera at its mid-readout pose would have seen the
+//     pair's median-depth plane: each rectified ray meets the plane and is
+//     found at the row whose camera saw it.
 //  3. SGBM disparities (range from the sparse points, left-right check) are
 //     turned into points in the adjustment frame (ENU).
 //  4. Each depth map's points go to a file; they are then fused tile by tile

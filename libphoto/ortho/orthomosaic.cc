@@ -11,6 +11,7 @@
 #include <list>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <unordered_map>
 
@@ -53,6 +54,8 @@ struct View {
   int image = -1;
   const Camera* camera = nullptr;
   Pose pose;
+  // A rolling shutter's motion: each row seen from where the camera was.
+  std::optional<RollingShutterMotion> shutter;
   double max_xn = 0, max_yn = 0;  // normalised coordinates inside the frame (with a margin)
   double sharpness = 0.0, weight = 1.0;
   cv::Rect bbox;                  // footprint on the coarse grid
@@ -70,12 +73,29 @@ struct View {
 // the best view that has it in frame rather than left empty.
 enum Sight : std::uint8_t { kOutOfFrame = 0, kHidden = 1, kVisible = 2 };
 
+// Where a view's camera sees a world point (camera coordinates *pc, image
+// *xy); false outside its frame's normalised bounds or behind it. A rolling
+// shutter's row is found by fixed-point steps from the mid-readout pose's
+// (each shrinks the error by the image's motion during one row, a hundredth
+// of a pixel per pixel on a drone).
+bool ViewPoint(const View& v, const Eigen::Vector3d& world, Eigen::Vector3d* pc, Eigen::Vector2d* xy) {
+  Pose pose = v.pose;
+  for (int step = 0;; ++step) {
+    *pc = pose.CamFromWorld(world);
+    if (pc->z() <= 0) return false;
+    const double xn = pc->x() / pc->z(), yn = pc->y() / pc->z();
+    if (std::abs(xn) > v.max_xn || std::abs(yn) > v.max_yn) return false;
+    const Eigen::Vector2d next = v.camera->ImageFromNormalized({xn, yn});
+    const bool settled = step > 0 && (next - *xy).squaredNorm() < 1e-6;
+    *xy = next;
+    if (!v.shutter || settled || step == 5) return true;
+    pose.centre_in_world = v.pose.centre_in_world + v.shutter->CentreShift(xy->y(), v.camera->height);
+  }
+}
+
 Sight Project(const View& v, const Eigen::Vector3d& world, Eigen::Vector2d* xy) {
-  const Eigen::Vector3d pc = v.pose.CamFromWorld(world);
-  if (pc.z() <= 0) return kOutOfFrame;
-  const double xn = pc.x() / pc.z(), yn = pc.y() / pc.z();
-  if (std::abs(xn) > v.max_xn || std::abs(yn) > v.max_yn) return kOutOfFrame;
-  *xy = v.camera->ImageFromNormalized({xn, yn});
+  Eigen::Vector3d pc;
+  if (!ViewPoint(v, world, &pc, xy)) return kOutOfFrame;
   if (xy->x() < 0 || xy->y() < 0 || xy->x() > v.camera->width - 1.0 || xy->y() > v.camera->height - 1.0) {
     return kOutOfFrame;
   }
@@ -188,11 +208,10 @@ void PrepareView(View& v, const cv::Mat& photo, const Grid& coarse, const std::v
     for (int i = v.bbox.x; i < v.bbox.x + v.bbox.width; ++i) {
       const size_t c = static_cast<size_t>(j) * coarse.width + i;
       if (!has_surface[c]) continue;
-      const Eigen::Vector3d pc = v.pose.CamFromWorld(world[c]);
-      if (pc.z() <= 0) continue;
-      const double xn = pc.x() / pc.z(), yn = pc.y() / pc.z();
-      if (std::abs(xn) > v.max_xn || std::abs(yn) > v.max_yn) continue;
-      const Eigen::Vector2d p = cam.ImageFromNormalized({xn, yn}) / kZbufferScale;
+      Eigen::Vector3d pc;
+      Eigen::Vector2d at;
+      if (!ViewPoint(v, world[c], &pc, &at)) continue;
+      const Eigen::Vector2d p = at / kZbufferScale;
       const int half = static_cast<int>(std::ceil(0.5 * coarse.res * focal / pc.z() / kZbufferScale + 0.5));
       const int px = static_cast<int>(std::floor(p.x())), py = static_cast<int>(std::floor(p.y()));
       for (int y = std::max(0, py - half + 1); y <= std::min(v.zbuffer.rows - 1, py + half); ++y) {
@@ -428,6 +447,7 @@ std::vector<View> PrepareViews(const SparseModel& model, const std::function<cv:
     v.image = static_cast<int>(k);
     v.camera = &model.cameras.at(image.camera);
     v.pose = image.pose;
+    if (image.rolling_shutter && image.rolling_shutter->readout_time_s != 0.0) v.shutter = image.rolling_shutter;
     views.push_back(std::move(v));
   }
   if (views.empty()) throw InvalidArgument("orthomosaic: no registered photo");

@@ -5,7 +5,8 @@
 // onto the output CRS's grid, one view per ground cell, blended across seams.
 //
 //   1. Views. Each ground cell (x, y, surface z) is projected into every
-//      photo; a photo sees it when it falls inside the frame and is not
+//      photo (a rolling-shutter photo's, Image::rolling_shutter, from the
+//      camera where it was when the cell's row was read); a photo sees it when it falls inside the frame and is not
 //      hidden: a z-buffer of the surface rendered into each photo (a quarter
 //      of its resolution) tests occlusion. Among the photos that see it, the
 //      best is the closest to nadir (cosine of the ray's angle from the

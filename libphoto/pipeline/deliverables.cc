@@ -48,6 +48,37 @@ std::string CloudFileName(const PipelineOptions& o) {
 
 namespace {
 
+// The adjusted survey's cameras (georeferenced/), each photo with the
+// rolling shutter the adjustment modelled (report.json adjustment.shutter;
+// a readout it estimated replaces the photos' own), so that every
+// deliverable sees each row from where its camera was; photos the
+// adjustment took for a global shutter's stay so.
+SparseModel ReadSurveyModel(const PipelineOptions& o, const IngestView& ingest, const json& report) {
+  SparseModel model = ReadColmapText(o.workspace / "georeferenced");
+  std::map<int, double> readout;  // by camera id, of the groups modelled as rolling
+  if (report.contains("adjustment") && report["adjustment"].contains("shutter")) {
+    for (const json& shutter : report["adjustment"]["shutter"]) {
+      if (shutter.value("model", "") != "rolling") continue;
+      readout[shutter.value("camera", -1)] =
+          shutter.value("readout_estimated", false) ? shutter.value("readout_time_s", 0.0) : -1.0;
+    }
+  }
+  if (readout.empty()) return model;
+  std::map<std::string, int> image_of;
+  for (size_t i = 0; i < model.images.size(); ++i) image_of[model.images[i].name] = static_cast<int>(i);
+  std::string source;
+  for (const auto& [name, motion] : ingest.RollingShutters(&source)) {
+    const auto it = image_of.find(name);
+    if (it == image_of.end()) continue;
+    Image& image = model.images[it->second];
+    const auto r = readout.find(model.cameras[image.camera].id);
+    if (r == readout.end()) continue;
+    image.rolling_shutter = motion;
+    if (r->second >= 0.0) image.rolling_shutter->readout_time_s = r->second;
+  }
+  return model;
+}
+
 struct GeoFrame {
   LocalFrame frame;
   Crs crs;
@@ -737,8 +768,8 @@ bool RunDenseShare(const PipelineOptions& o) {
   }
   fs::remove(o.workspace / "dense.json");
   fs::remove(o.workspace / "report.html");
-  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
   const IngestView ingest = LoadIngest(o);
+  const SparseModel model = ReadSurveyModel(o, ingest, report);
   const fs::path images_dir = ingest.ImagesDir(o);
   const int max_dimension = ingest.record.working_max_dimension;
   const DenseOptions d = DenseOptionsOf(o);
@@ -1011,8 +1042,8 @@ bool RunDenseStage(const PipelineOptions& o) {
   if (from_shares) {
     ReadFusedShares(o, dense_progress, &summary, add);
   } else {
-    const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
     const IngestView ingest = LoadIngest(o);
+    const SparseModel model = ReadSurveyModel(o, ingest, report);
     const fs::path images_dir = ingest.ImagesDir(o);
     const int max_dimension = ingest.record.working_max_dimension;
     sink.consume = [&](DenseCloud&& part) { add(part.positions, part.colours, part.resolution_m); };
@@ -1314,8 +1345,8 @@ bool RunOrthoStage(const PipelineOptions& o) {
                           "(--keep-going draws it, tagged as failed)");
   }
   const GeoFrame deliverable = DeliverableFrame(report, dense);
-  const SparseModel model = ReadColmapText(o.workspace / "georeferenced");
   IngestView ingest = LoadIngest(o);
+  const SparseModel model = ReadSurveyModel(o, ingest, report);
   const fs::path images_dir = ingest.ImagesDir(o);
   const int max_dimension = ingest.record.working_max_dimension;
   const Raster surface = ReadRaster(surface_path);
@@ -1426,36 +1457,12 @@ namespace {
 void CheckPointsOnSurvey(const PipelineOptions& o, json* report_out) {
   json& report = *report_out;
   const GeoFrame g = FrameOf(report);
-  SparseModel model = ReadColmapText(o.workspace / "georeferenced");
   IngestView ingest = LoadIngest(o);
+  // Each mark seen from where its photo's camera was.
+  SparseModel model = ReadSurveyModel(o, ingest, report);
   std::map<std::string, int> image_of, ingest_of;
   for (size_t i = 0; i < model.images.size(); ++i) image_of[model.images[i].name] = static_cast<int>(i);
   for (size_t i = 0; i < ingest.names.size(); ++i) ingest_of[ingest.names[i]] = static_cast<int>(i);
-  // The rolling shutters the adjustment modelled (adjustment.shutter), so
-  // that each mark is seen from where its photo's camera was.
-  // A readout the adjustment estimated replaces the photos' own.
-  bool rolling = false;
-  std::map<int, double> estimated_readout;  // by camera id
-  if (report.contains("adjustment") && report["adjustment"].contains("shutter")) {
-    for (const json& shutter : report["adjustment"]["shutter"]) {
-      if (shutter.value("model", "") != "rolling") continue;
-      rolling = true;
-      if (shutter.value("readout_estimated", false)) {
-        estimated_readout[shutter.value("camera", -1)] = shutter.value("readout_time_s", 0.0);
-      }
-    }
-  }
-  if (rolling) {
-    std::string source;
-    for (const auto& [name, motion] : ingest.RollingShutters(&source)) {
-      const auto it = image_of.find(name);
-      if (it == image_of.end()) continue;
-      Image& image = model.images[it->second];
-      image.rolling_shutter = motion;
-      const auto r = estimated_readout.find(model.cameras[image.camera].id);
-      if (r != estimated_readout.end()) image.rolling_shutter->readout_time_s = r->second;
-    }
-  }
   const GcpFile checks = ReadGcpFile(o.checkpoints, o.gcp_pixel_origin);
   const Crs file_crs = Crs::FromString(checks.crs);
   std::vector<GroundPointResult> results;
