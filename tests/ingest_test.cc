@@ -235,7 +235,8 @@ TEST(ImageMetadata, DjiSaysItsFlightAttitudeSpeedsCalibrationAndRtkDeviations) {
   const auto p4p = RollingShutterStatedBy(ReadImageMetadata(dir / "p4p.jpg"));
   ASSERT_TRUE(p4p.has_value());
   EXPECT_DOUBLE_EQ(p4p->readout_time_s, 0.033);
-  EXPECT_NE(p4p->source.find("33 ms for the DJI FC6310 from OpenDroneMap's rolling-shutter database"), std::string::npos)
+  EXPECT_NE(p4p->source.find("33 ms for the DJI FC6310 from OpenDroneMap's rolling-shutter database"),
+            std::string::npos)
       << p4p->source;
   // A malformed number is no number, not a guess.
   WriteJpegWithExif(dir / "bad.jpg", image, {{"EXIF_Make", "DJI"}}, 90,

@@ -220,7 +220,8 @@ TEST_F(RollingShutterSurvey, DsmAndOrthomosaicSeeEachRowFromWhereTheCameraWas) {
   std::printf("DSM median |error|: global shutter %.4f m; rolling, per row %.4f m (%.2fx); rolling, taken for global "
               "%.4f m (%.2fx)\northo at check targets (H RMSE, located): global %.4f m (%d); rolling, per row %.4f m "
               "(%d); taken for global %.4f m (%d); GSD %.4f m\n",
-              global_dsm, rolling_dsm, rolling_dsm / global_dsm, unaware_dsm, unaware_dsm / global_dsm, global.ortho_rmse_h_m,
+              global_dsm, rolling_dsm, rolling_dsm / global_dsm, unaware_dsm, unaware_dsm / global_dsm,
+              global.ortho_rmse_h_m,
               global.ortho_located, rolling.ortho_rmse_h_m, rolling.ortho_located, unaware.ortho_rmse_h_m,
               unaware.ortho_located, gsd);
   ASSERT_GT(global_dsm, 0.0);

@@ -137,7 +137,8 @@ TEST(IngestView, RollingShuttersFromWhatEachPhotoStates) {
     im.camera_says = says;
     view.record.images.push_back(im);
   };
-  photo("sequoia.jpg", "Parrot", "Sequoia", {{"line_readout_time_s", 0.0475}, {"imu_linear_velocity_mps", {2.09, 12.59, 0.61}}});
+  photo("sequoia.jpg", "Parrot", "Sequoia",
+        {{"line_readout_time_s", 0.0475}, {"imu_linear_velocity_mps", {2.09, 12.59, 0.61}}});
   photo("p4p_a.jpg", "DJI", "FC6310", {{"flight_speed_mps", {9.8, -0.3, 0.1}}});
   photo("p4p_b.jpg", "DJI", "FC6310", {{"flight_speed_mps", {-9.7, 0.4, 0.0}}});
   photo("unknown.jpg", "DJI", "FC9999", {{"flight_speed_mps", {5.0, 5.0, 0.0}}});

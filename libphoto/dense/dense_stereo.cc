@@ -624,8 +624,8 @@ RectifiedExtent ExtentOf(const Image& im, const Camera& cam, const Eigen::Matrix
 // readout times the point's relative height off the plane (2 cm for 0.5 m
 // of motion and 4 % relief).
 void RectificationMap(const Image& im, const Camera& cam, const Eigen::Matrix3d& rect_from_world, double f,
-                      double cx, double cy, int width, int height, double image_scale, const Eigen::Vector3d& plane_origin,
-                      double plane_depth, cv::Mat* mx, cv::Mat* my) {
+                      double cx, double cy, int width, int height, double image_scale,
+                      const Eigen::Vector3d& plane_origin, double plane_depth, cv::Mat* mx, cv::Mat* my) {
   mx->create(height, width, CV_32F);
   my->create(height, width, CV_32F);
   const Eigen::Matrix3d cam_from_rect = im.pose.cam_from_world.toRotationMatrix() * rect_from_world.transpose();
@@ -646,7 +646,9 @@ void RectificationMap(const Image& im, const Camera& cam, const Eigen::Matrix3d&
       if (rolling) {
         const Eigen::Vector3d dir = world_from_cam * ray;
         const double along = zhat.dot(dir);
-        if (along > 1e-6) xy = ProjectIntoImage(cam, im, im.pose.centre_in_world + (plane_depth - centre_depth) / along * dir);
+        if (along > 1e-6) {
+          xy = ProjectIntoImage(cam, im, im.pose.centre_in_world + (plane_depth - centre_depth) / along * dir);
+        }
       }
       if (xy.x() < -0.5 || xy.y() < -0.5 || xy.x() > cam.width - 0.5 || xy.y() > cam.height - 0.5) {
         px[u] = py[u] = -1.0f;
@@ -704,7 +706,8 @@ bool DepthPointsOfPair(const SparseModel& model, int i, int j, const std::functi
   }
   if (disparities.size() < 20) return false;
   std::sort(disparities.begin(), disparities.end());
-  const double median_depth = f * baseline / disparities[disparities.size() / 2];  // the plane a rolling shutter is undone on
+  // The plane a rolling shutter is undone on: the sparse points' median depth.
+  const double median_depth = f * baseline / disparities[disparities.size() / 2];
   const double dlo = disparities[disparities.size() / 50];
   const double dhi = disparities[disparities.size() - 1 - disparities.size() / 50];
   // Photo b's frame is shifted onto a's so that the search starts at

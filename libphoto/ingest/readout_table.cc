@@ -15,7 +15,7 @@ namespace {
 struct Row {
   const char* make_model;  // lower case, "make model"
   double readout_ms;
-  double below_megapixels;     // this row applies below this capture size
+  double below_megapixels;  // this row applies below this capture size
 };
 constexpr double kAny = std::numeric_limits<double>::infinity();
 constexpr Row kRows[] = {

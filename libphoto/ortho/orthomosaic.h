@@ -6,12 +6,13 @@
 //
 //   1. Views. Each ground cell (x, y, surface z) is projected into every
 //      photo (a rolling-shutter photo's, Image::rolling_shutter, from the
-//      camera where it was when the cell's row was read); a photo sees it when it falls inside the frame and is not
-//      hidden: a z-buffer of the surface rendered into each photo (a quarter
-//      of its resolution) tests occlusion. Among the photos that see it, the
-//      best is the closest to nadir (cosine of the ray's angle from the
-//      vertical), slightly weighted by the photo's sharpness (variance of the
-//      Laplacian against the survey's median).
+//      camera where it was when the cell's row was read); a photo sees it
+//      when it falls inside the frame and is not hidden: a z-buffer of the
+//      surface rendered into each photo (a quarter of its resolution) tests
+//      occlusion. Among the photos that see it, the best is the closest to
+//      nadir (cosine of the ray's angle from the vertical), slightly weighted
+//      by the photo's sharpness (variance of the Laplacian against the
+//      survey's median).
 //   2. Seams, on a coarse grid (seam_cell_factor cells), for the whole area
 //      at once: the best-view partition is widened by a band of
 //      seam_band_cells, and OpenCV's graph-cut seam finder (colour and

@@ -112,7 +112,11 @@ std::map<std::string, RollingShutterMotion> IngestView::RollingShutters(std::str
     if (says.contains("imu_linear_velocity_mps")) m.imu_linear_velocity_mps = says["imu_linear_velocity_mps"].get<std::vector<double>>();
     if (says.contains("flight_speed_mps")) {
       const auto speed = says["flight_speed_mps"].get<std::vector<double>>();
-      if (speed.size() == 3) m.flight_speed_x_mps = speed[0], m.flight_speed_y_mps = speed[1], m.flight_speed_z_mps = speed[2];
+      if (speed.size() == 3) {
+        m.flight_speed_x_mps = speed[0];
+        m.flight_speed_y_mps = speed[1];
+        m.flight_speed_z_mps = speed[2];
+      }
     }
     if (const auto stated = RollingShutterStatedBy(m)) {
       motion[im.name] = {stated->readout_time_s, Eigen::Vector3d(stated->east_mps, stated->north_mps, 0.0)};
