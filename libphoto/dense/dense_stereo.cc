@@ -642,13 +642,13 @@ void RectificationMap(const Image& im, const Camera& cam, const Eigen::Matrix3d&
         px[u] = py[u] = -1.0f;
         continue;
       }
-      Eigen::Vector2d xy = cam.ImageFromCamera(ray);
-      if (rolling) {
-        const Eigen::Vector3d dir = world_from_cam * ray;
-        const double along = zhat.dot(dir);
-        if (along > 1e-6) {
-          xy = ProjectIntoImage(cam, im, im.pose.centre_in_world + (plane_depth - centre_depth) / along * dir);
-        }
+      // A rolling shutter's point on the plane, found at its row; else the ray's own pixel.
+      Eigen::Vector2d xy;
+      const Eigen::Vector3d dir = rolling ? Eigen::Vector3d(world_from_cam * ray) : Eigen::Vector3d::Zero();
+      if (const double along = zhat.dot(dir); along > 1e-6) {
+        xy = ProjectIntoImage(cam, im, im.pose.centre_in_world + (plane_depth - centre_depth) / along * dir);
+      } else {
+        xy = cam.ImageFromCamera(ray);
       }
       if (xy.x() < -0.5 || xy.y() < -0.5 || xy.x() > cam.width - 0.5 || xy.y() > cam.height - 0.5) {
         px[u] = py[u] = -1.0f;
