@@ -40,5 +40,34 @@ TEST(Memory, AStagesPeakIsItsOwnOnceTheMarkIsRestarted) {
   EXPECT_LT(PeakRssMb(), before + 1.25 * kBlockMb);
 }
 
+// A stage that times its phases: each phase's peak is its own, and the
+// stage's holds the largest of them though every phase restarted the mark.
+TEST(Memory, AStagesPeakHoldsItsPhasesPeaks) {
+  const double before = CurrentRssMb();
+  ASSERT_GT(before, 0.0) << "no /proc/self/status";
+  const PeakRssSpan stage;
+  if (!stage.Own()) GTEST_SKIP() << "the kernel would not restart the high-water mark here";
+  double big = 0.0, small = 0.0;
+  {
+    const PeakRssSpan phase;
+    TouchAndFree();
+    big = phase.PeakMb();
+  }
+  {
+    const PeakRssSpan phase;
+    std::vector<char> little(16 << 20);
+    std::memset(little.data(), 1, little.size());
+    small = phase.PeakMb();
+  }
+  EXPECT_GE(big, before + 0.9 * kBlockMb);
+  EXPECT_LT(small, before + 0.25 * kBlockMb);
+  EXPECT_GE(small, before + 15.0);
+  // The second phase restarted the mark below the first's block: the stage
+  // still has it.
+  EXPECT_LT(PeakRssMb(), before + 0.25 * kBlockMb);
+  EXPECT_GE(stage.PeakMb(), before + 0.9 * kBlockMb);
+  EXPECT_LT(stage.PeakMb(), before + 1.25 * kBlockMb);
+}
+
 }  // namespace
 }  // namespace aerotri

@@ -9,8 +9,10 @@
 #include <algorithm>
 #include <atomic>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace aerotri {
 namespace {
@@ -31,6 +33,12 @@ double StatusFieldMb(const char* name) {
 }
 
 std::atomic<double> peak_before_reset{0.0};  // the largest mark a reset discarded
+
+std::mutex spans_mutex;
+std::vector<PeakRssSpan*>& OpenSpans() {
+  static std::vector<PeakRssSpan*> spans;
+  return spans;
+}
 
 double RusageMaxRssMb() {
   rusage usage{};
@@ -57,11 +65,32 @@ bool ResetPeakRss() {
   double seen = peak_before_reset.load();
   while (before > seen && !peak_before_reset.compare_exchange_weak(seen, before)) {
   }
+  {
+    std::lock_guard<std::mutex> lock(spans_mutex);
+    for (PeakRssSpan* span : OpenSpans()) span->discarded_mb_ = std::max(span->discarded_mb_, before);
+  }
   std::ofstream out("/proc/self/clear_refs");
   if (!out) return false;
   out << "5";
   out.flush();
   return static_cast<bool>(out);
+}
+
+PeakRssSpan::PeakRssSpan() {
+  own_ = ResetPeakRss();
+  std::lock_guard<std::mutex> lock(spans_mutex);
+  OpenSpans().push_back(this);
+}
+
+PeakRssSpan::~PeakRssSpan() {
+  std::lock_guard<std::mutex> lock(spans_mutex);
+  auto& spans = OpenSpans();
+  spans.erase(std::remove(spans.begin(), spans.end(), this), spans.end());
+}
+
+double PeakRssSpan::PeakMb() const {
+  std::lock_guard<std::mutex> lock(spans_mutex);
+  return std::max(discarded_mb_, PeakRssMb());
 }
 
 void ReleaseFreedMemory() {

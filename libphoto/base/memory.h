@@ -30,6 +30,27 @@ double ProcessPeakRssMb();
 // kernel refuses (no /proc, a restricted container): PeakRssMb() then stays
 // the process's peak, and callers should say so.
 bool ResetPeakRss();
+// The resident peak of one span of work that may hold spans of its own (a
+// stage and its phases): each span starts with ResetPeakRss(), and every
+// reset inside it hands the span the mark it discards, so PeakMb() is the
+// span's own peak however many spans nested in it reset the mark since.
+// Spans are opened and closed on one thread; they may nest, not overlap.
+class PeakRssSpan {
+ public:
+  PeakRssSpan();
+  ~PeakRssSpan();
+  PeakRssSpan(const PeakRssSpan&) = delete;
+  PeakRssSpan& operator=(const PeakRssSpan&) = delete;
+  double PeakMb() const;
+  // Whether the kernel restarted the mark at the span's start: false, and
+  // PeakMb() is the process's peak.
+  bool Own() const { return own_; }
+
+ private:
+  friend bool ResetPeakRss();
+  bool own_ = false;
+  double discarded_mb_ = 0.0;  // the largest mark a reset inside the span discarded
+};
 // Hands the heap's free pages back to the kernel (glibc malloc_trim; a
 // no-op elsewhere): after a large structure built of many mid-sized blocks
 // is freed, so that the next one does not stack on top of it.

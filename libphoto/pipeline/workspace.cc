@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <mutex>
 
 #include "libphoto/base/atomic_file.h"
@@ -28,14 +29,20 @@ ProgressCallback StageProgress(const PipelineOptions& o, const std::string& stag
 }
 
 namespace {
-bool peak_is_the_stages = false;  // the last BeginStage restarted the high-water mark
+// The stage's resident peak, through the resets its phases make (the
+// georeference stage times its own).
+std::unique_ptr<PeakRssSpan>& StageSpan() {
+  static std::unique_ptr<PeakRssSpan> span;
+  return span;
+}
 }  // namespace
 
 std::chrono::steady_clock::time_point BeginStage() {
   // The heap's free pages back to the kernel first: what an earlier stage
   // freed but glibc kept would otherwise count in this stage's peak.
   ReleaseFreedMemory();
-  peak_is_the_stages = ResetPeakRss();
+  StageSpan().reset();
+  StageSpan() = std::make_unique<PeakRssSpan>();
   return std::chrono::steady_clock::now();
 }
 
@@ -49,10 +56,11 @@ void RecordTiming(const PipelineOptions& o, const std::string& stage, double sec
       timings = json::object();
     }
   }
+  const PeakRssSpan* span = StageSpan().get();
   timings[stage] = {{"wall_s", seconds},
-                    {"peak_rss_mb", PeakRssMb()},
+                    {"peak_rss_mb", span ? span->PeakMb() : PeakRssMb()},
                     {"process_peak_rss_mb", ProcessPeakRssMb()},
-                    {"peak_rss_scope", peak_is_the_stages ? "stage" : "process"}};
+                    {"peak_rss_scope", span && span->Own() ? "stage" : "process"}};
   WriteTextFileAtomically(path, timings.dump(2) + "\n");
 }
 

@@ -601,6 +601,11 @@ nlohmann::json GeoreferenceReportJson(const GeoreferenceReport& r, const SparseM
   }
   AddLeaveOneOut(r, &j);
   AddPrecision(r, &j);
+  nlohmann::json phases = nlohmann::json::array();
+  for (const GeoreferenceReport::Phase& p : r.phases) {
+    phases.push_back({{"phase", p.name}, {"wall_s", p.wall_s}, {"cpu_s", p.cpu_s}, {"peak_rss_mb", p.peak_rss_mb}});
+  }
+  j["adjustment"]["phases"] = phases;
   j["adjustment"]["helmert"] = {{"correspondences", r.helmert_correspondences},
                                 {"inliers", r.helmert_inliers},
                                 {"rms_m", r.helmert_rms_m},

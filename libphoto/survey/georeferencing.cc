@@ -9,11 +9,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <unordered_map>
 
 #include <Eigen/SVD>
 
 #include "libphoto/base/error.h"
+#include "libphoto/base/memory.h"
 #include "libphoto/geometry/triangulation.h"
 #include "libphoto/survey/quality_gates.h"
 #include "libphoto/survey/survey_phases.h"
@@ -387,31 +389,68 @@ GroundPointResult EvaluateGroundPoint(const std::string& name, PointRole role,
 }
 
 
+namespace {
+
+// Runs the stage's phases one by one, each timed into the report: wall and
+// CPU time, and its resident peak (a span of its own inside the stage's).
+class PhaseTimer {
+ public:
+  explicit PhaseTimer(GeoreferenceReport* report) : report_(report) {}
+  template <typename Phase>
+  void operator()(const char* name, Phase&& phase) {
+    const auto wall = std::chrono::steady_clock::now();
+    const std::clock_t cpu = std::clock();
+    GeoreferenceReport::Phase& record = report_->phases.emplace_back();
+    record.name = name;
+    const PeakRssSpan span;
+    phase();
+    record.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();
+    record.cpu_s = static_cast<double>(std::clock() - cpu) / CLOCKS_PER_SEC;
+    record.peak_rss_mb = span.PeakMb();
+  }
+
+ private:
+  GeoreferenceReport* report_;
+};
+
+}  // namespace
+
 GeoreferenceReport GeoreferenceAndAdjust(SparseModel* model, const std::map<std::string, GpsFix>& gps,
                                          const GcpFile* control, const GcpFile* checks,
                                          const GeoreferenceOptions& options) {
   SurveyState s = StartSurvey(model, gps, control, checks, options);
+  PhaseTimer timed(&s.report);
   ReportProgress(options.progress, 0.0, "reading control");
-  if (auto duplicated = CheckDuplicatedMarks(control, checks)) s.report.findings.push_back(std::move(*duplicated));
-  ChooseFrameAndDatum(&s);
-  AttachPriors(&s);
+  timed("inputs, frame and priors", [&] {
+    if (auto duplicated = CheckDuplicatedMarks(control, checks)) s.report.findings.push_back(std::move(*duplicated));
+    ChooseFrameAndDatum(&s);
+    AttachPriors(&s);
+  });
   ReportProgress(options.progress, 0.1, "initial similarity fit");
-  FitInitialSimilarity(&s);
-  ChooseRefinement(&s);
-  ModelGnss(&s);
+  timed("initial similarity", [&] { FitInitialSimilarity(&s); });
+  timed("GNSS model", [&] {
+    ChooseRefinement(&s);
+    ModelGnss(&s);
+  });
   ReportProgress(options.progress, 0.2, "bundle adjustment with GPS and control priors");
-  AdjustBlock(&s);
-  HoldWeakFocal(&s);
-  ReportReadouts(&s);
-  ReportGnssAndAttitude(&s);
+  timed("adjustment", [&] { AdjustBlock(&s); });
+  timed("weak focal", [&] { HoldWeakFocal(&s); });
+  timed("GNSS, attitude and shutter", [&] {
+    ReportReadouts(&s);
+    ReportGnssAndAttitude(&s);
+  });
   ReportProgress(options.progress, 0.9, "check points");
-  EvaluateGroundPoints(&s);
-  TestDome(&s);
-  ReportCameras(&s);
-  ReportVarianceComponents(&s);
-  SnoopTargetMarks(&s);
-  ApplyQualityGates(*s.model, options.gates, &s.report);
-  LeaveControlOut(&s);
+  timed("check points", [&] {
+    EvaluateGroundPoints(&s);
+    TestDome(&s);
+  });
+  timed("statistics", [&] {
+    ReportCameras(&s);
+    ReportVarianceComponents(&s);
+    SnoopTargetMarks(&s);
+    ApplyQualityGates(*s.model, options.gates, &s.report);
+  });
+  timed("leave-one-out", [&] { LeaveControlOut(&s); });
   ReportProgress(options.progress, 1.0, "georeferenced");
   return std::move(s.report);
 }

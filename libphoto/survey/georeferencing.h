@@ -406,6 +406,16 @@ struct GeoreferenceReport {
   // Warnings and errors with stable codes (findings.h); SurveyStatus() of
   // them is the survey's status.
   std::vector<Finding> findings;
+  // The phases as run (GeoreferenceAndAdjust, survey_phases.h), in order:
+  // what each cost. The adjustment's solves and precision pass are timed
+  // inside it (bundle.solves, bundle.precision.time_s).
+  struct Phase {
+    std::string name;
+    double wall_s = 0.0;
+    double cpu_s = 0.0;        // the process's CPU time in it, every thread
+    double peak_rss_mb = 0.0;  // the resident peak in it (the process's where the kernel cannot reset the mark)
+  };
+  std::vector<Phase> phases;
 };
 
 // d(output CRS)/d(ENU) at an adjustment-frame position, by central

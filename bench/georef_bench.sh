@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# The survey adjustment (the georeference stage) per phase, at growing size:
+# rendered surveys' models without their photos (`aerotri simulate
+# --no-images`: 1200 x 900 px, the sample's flight plan over a larger area,
+# GPS at 2 / 4 m, control and check points growing with the area, tie points
+# 380 a photo as the scale bench's reconstructions hold), each adjusted by
+# `aerotri adjust` with leave-one-out; then `aerotri bal` on a BAL problem of
+# the same cameras, points and observations (bench/model_to_bal.py), in the
+# same run, as the yardstick: the survey's time over it is the ratio.
+#
+# Prints per survey: photos, points, observations; per phase wall and CPU
+# seconds and resident peak (report.json adjustment.phases); the solves
+# (screening, least squares, outlier rounds, variance components) and the
+# precision pass; the whole run's wall time and peak (/usr/bin/time); the
+# BAL solve's; and the ratio.
+#
+# Usage: bench/georef_bench.sh [photos ...]   (default: 60 500 1000)
+# Env: BENCH_WORK (default /tmp/aerotri_georef_bench), KEEP=1 keeps the
+# surveys, AEROTRI=path runs another binary, THREADS (default 2), LOO=off
+# leaves leave-one-out out.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+exe="${AEROTRI:-$(pwd)/build/tools/aerotri}"
+[ -x "$exe" ] || scripts/build.sh >/dev/null
+sizes=("$@")
+[ ${#sizes[@]} -gt 0 ] || sizes=(60 500 1000)
+work="${BENCH_WORK:-/tmp/aerotri_georef_bench}"
+threads="${THREADS:-2}"
+mkdir -p "$work"
+
+for n in "${sizes[@]}"; do
+  # About 480 m2 of ground per photo at 60 m with 75 / 65 % overlap; 4:3 area.
+  read -r w h control checks points < <(awk -v n="$n" 'BEGIN{
+    w = sqrt(n * 480 * 4 / 3); c = int(n / 25); k = int(n / 40);
+    printf "%.0f %.0f %d %d %d\n", w, 0.75 * w, (c < 8 ? 8 : (c > 100 ? 100 : c)), (k < 6 ? 6 : (k > 100 ? 100 : k)),
+      n * 380 }')
+  sim="$work/sim_$n" out="$work/adjust_$n" bal="$work/bal_$n.txt"
+  if [ ! -f "$sim/gps.csv" ]; then
+    "$exe" simulate -o "$sim" --no-images --seed 7 --width 1200 --height 900 --area-width "$w" --area-height "$h" \
+      --control "$control" --checks "$checks" --tie-points "$points" --quiet >/dev/null
+  fi
+  [ -f "$bal" ] || /usr/bin/python3 bench/model_to_bal.py "$sim" "$bal" >/dev/null
+  rm -rf "$out"
+  /usr/bin/time -f "%e %M" -o "$work/adjust_$n.time" "$exe" adjust --model "$sim/model" --gps-csv "$sim/gps.csv" \
+    --gcp "$sim/gcp_list.txt" --checkpoints "$sim/checkpoints.txt" --leave-one-out "${LOO:-on}" \
+    --threads "$threads" --quiet -o "$out" >/dev/null || true
+  /usr/bin/time -f "%e %M" -o "$work/bal_$n.time" "$exe" bal "$bal" --threads "$threads" \
+    >"$work/bal_$n.out" 2>/dev/null || true
+  /usr/bin/python3 - "$out/report.json" "$work/adjust_$n.time" "$work/bal_$n.time" "$work/bal_$n.out" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+a_wall, a_kb = (float(x) for x in open(sys.argv[2]).read().split()[-2:])
+b_wall, b_kb = (float(x) for x in open(sys.argv[3]).read().split()[-2:])
+bal = open(sys.argv[4]).read().split()
+adj = r["adjustment"]
+cp = r.get("check_points", {})
+print("\n%d photos, %d points, %d observations, %d control, %d check points: status %s, sigma0 %.3f, "
+      "check RMSE H / V %.4f / %.4f m" % (adj["images"], adj["points"], adj["observations"], adj["gcp_priors"],
+      cp.get("count", 0), r.get("status", "?"), adj["sigma0"], cp.get("rmse_h_m", float("nan")),
+      cp.get("rmse_z_m", float("nan"))))
+print("  %-34s %9s %9s %9s" % ("phase", "wall_s", "cpu_s", "peak_MB"))
+for p in adj.get("phases", []):
+    print("  %-34s %9.2f %9.2f %9.0f" % (p["phase"], p["wall_s"], p["cpu_s"], p["peak_rss_mb"]))
+for s in adj.get("solves", []):
+    print("    solve: %-28s %9.2f s %4d iterations" % (s["kind"], s["time_s"], s["iterations"]))
+prec = adj.get("precision", {})
+print("    precision pass (the last)          %9.2f s" % prec.get("time_s", 0.0))
+loo = r.get("leave_one_out", {})
+if loo.get("computed"):
+    print("    leave-one-out: %d points, %d updated, %.2f s" % (loo.get("count", len(loo.get("points", []))),
+          loo["updated"], loo["time_s"]))
+print("  %-34s %9.2f %9s %9.0f" % ("aerotri adjust (whole run)", a_wall, "", a_kb / 1024))
+print("  %-34s %9.2f %9s %9.0f   %s" % ("aerotri bal, same size", b_wall, "", b_kb / 1024,
+      " ".join(w for w in bal if w.startswith(("iterations=", "rms_px=")))))
+print("  ratio adjust / bal: %.2f (wall), %.2f (peak memory)" % (a_wall / max(b_wall, 1e-9), a_kb / max(b_kb, 1)))
+PY
+  [ -n "${KEEP:-}" ] || rm -rf "$sim" "$out" "$bal"
+done
