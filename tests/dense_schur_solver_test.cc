@@ -12,6 +12,7 @@
 #include <random>
 
 #include "libphoto/adjust/bundle_adjuster.h"
+#include "libphoto/adjust/schur_lm_solver.h"
 #include "libphoto/base/error.h"
 
 namespace aerotri {
@@ -156,44 +157,58 @@ TEST(DenseSchurSolver, HeldIntrinsicsStayExactlyAndOtherModelsWork) {
   }
 }
 
+// The BAL engine takes free networks of merged blocks without a loss; the
+// general Schur engine (schur_lm_solver.h) takes the rest up to its size;
+// beyond both, Ceres.
 TEST(DenseSchurSolver, UsedOnlyWhereItApplies) {
   BalScene scene = MakeBalScene(5, 6, 120, 0.5, CameraModelId::kSnavely);
-  // A robust loss: auto falls back to Ceres, an explicit request is refused.
+  // A robust loss: the general engine; Ceres when asked for.
   {
     SparseModel m = scene.start;
     BundleOptions o;
     o.loss = LossType::kHuber;
-    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "dense_schur");
-    o.engine = BundleEngine::kAerotri;
+    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "aerotri_schur_lm");
+    o.engine = BundleEngine::kCeres;
     SparseModel m2 = scene.start;
-    try {
-      AdjustBundle(&m2, o);
-      ADD_FAILURE() << "the aerotri engine took a robust loss";
-    } catch (const InvalidArgument& e) {
-      EXPECT_NE(std::string(e.what()).find("robust loss"), std::string::npos) << e.what();
-    }
+    EXPECT_EQ(AdjustBundle(&m2, o).linear_solver, "dense_schur");
   }
-  // GPS priors hold the datum: Ceres.
+  // GPS priors hold the datum: the general engine.
   {
     SparseModel m = scene.start;
     for (size_t i = 0; i < m.images.size(); ++i) {
       m.images[i].gps_prior = PositionPrior{scene.truth.images[i].pose.centre_in_world, 1.0, 1.0, std::nullopt};
     }
-    EXPECT_EQ(AdjustBundle(&m, BundleOptions{}).linear_solver, "dense_schur");
+    EXPECT_EQ(AdjustBundle(&m, BundleOptions{}).linear_solver, "aerotri_schur_lm");
   }
-  // A camera group shared by two images: Ceres.
+  // A camera group shared by two images: the general engine.
   {
     SparseModel m = scene.start;
     m.images[1].camera = 0;
-    EXPECT_EQ(AdjustBundle(&m, BundleOptions{}).linear_solver, "dense_schur");
+    EXPECT_EQ(AdjustBundle(&m, BundleOptions{}).linear_solver, "aerotri_schur_lm");
   }
-  // A camera system too large to hold dense: Ceres.
+  // A camera system too large to hold dense for the BAL engine: the general one.
   {
     const BalScene big = MakeBalScene(6, kMaxDenseSchurSize / 9 + 2, 60, 0.5, CameraModelId::kSnavely);
     SparseModel m = big.start;
     BundleOptions o;
     o.max_iterations = 1;
-    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "dense_schur");
+    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "aerotri_schur_lm");
+  }
+  // Too large for both: Ceres, and the aerotri engine asked for says why not.
+  {
+    const BalScene big = MakeBalScene(6, kMaxSchurLmReducedSize / 9 + 2, 60, 0.5, CameraModelId::kSnavely);
+    SparseModel m = big.start;
+    BundleOptions o;
+    o.max_iterations = 1;
+    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "sparse_schur");
+    o.engine = BundleEngine::kAerotri;
+    SparseModel m2 = big.start;
+    try {
+      AdjustBundle(&m2, o);
+      ADD_FAILURE() << "the aerotri engine took a reduced system beyond its size";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("reduced system"), std::string::npos) << e.what();
+    }
   }
 }
 

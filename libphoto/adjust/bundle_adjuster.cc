@@ -18,6 +18,7 @@
 #include "libphoto/adjust/bundle_config.h"
 #include "libphoto/adjust/bundle_precision.h"
 #include "libphoto/adjust/dense_schur_solver.h"
+#include "libphoto/adjust/schur_lm_solver.h"
 #include "libphoto/adjust/position_prior_cost.h"
 #include "libphoto/adjust/reprojection_cost.h"
 #include "libphoto/base/error.h"
@@ -978,12 +979,22 @@ class CeresBundleProblem {
     }
   }
 
+  // The points the Schur elimination takes first (SchurOrdering's group 0).
+  std::vector<double*> EliminatedPoints() const {
+    std::vector<double*> points;
+    for (size_t p = 0; p < model_->points.size(); ++p) {
+      if (config_.point_used[p] && !HasControlPrior(p)) points.push_back(model_->points[p].position.data());
+    }
+    return points;
+  }
+
   // Schur elimination order: points first, then everything else.
   std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(std::vector<Eigen::Vector3d>* gps_offsets,
                                                                std::vector<Eigen::Vector3d>* gps_drift) {
     auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
     for (size_t p = 0; p < model_->points.size(); ++p) {
-      if (config_.point_used[p]) ordering->AddElementToGroup(model_->points[p].position.data(), 0);
+      if (!config_.point_used[p]) continue;
+      ordering->AddElementToGroup(model_->points[p].position.data(), HasControlPrior(p) ? 1 : 0);
     }
     for (size_t i = 0; i < model_->images.size(); ++i) {
       if (!config_.image_used[i]) continue;
@@ -1021,13 +1032,16 @@ class CeresBundleProblem {
     return o;
   }
 
+  // A control point with its surveyed position as a prior (AddControlPriors).
+  bool HasControlPrior(size_t p) const {
+    const Point& point = model_->points[p];
+    return options_.use_gcp_priors && config_.point_used[p] && point.role == PointRole::kControl &&
+           point.prior.has_value();
+  }
+
   int NumControlPriors() const {
     int n = 0;
-    for (size_t p = 0; p < model_->points.size(); ++p) {
-      const Point& point = model_->points[p];
-      n += options_.use_gcp_priors && config_.point_used[p] && point.role == PointRole::kControl &&
-           point.prior.has_value();
-    }
+    for (size_t p = 0; p < model_->points.size(); ++p) n += HasControlPrior(p);
     return n;
   }
 
@@ -1123,6 +1137,25 @@ bool SolveWithDenseSchur(SparseModel* model, const BundleOptions& options, const
 // current state): configure, build, solve, write back. gps_offsets (one
 // shared, or one per flight) and gps_drift (per flight) are the GPS offsets
 // and drift rates, in and out.
+// The solve: aerotri's Schur Levenberg–Marquardt where it takes the problem
+// (BundleOptions::engine auto or aerotri, the linear solver auto or dense
+// Schur), else Ceres.
+void SolveProblem(const BundleOptions& options, const ceres::Solver::Options& solver_options,
+                  const std::vector<double*>& points, ceres::Problem* problem, RoundResult* result) {
+  std::string why_not = "Ceres was asked for";
+  const bool ours = options.engine != BundleEngine::kCeres &&
+                    (options.linear_solver == LinearSolverChoice::kAuto ||
+                     options.linear_solver == LinearSolverChoice::kDenseSchur);
+  if (ours && SolveSchurLm(solver_options, problem, points, &result->ceres, &why_not)) {
+    result->solver = "aerotri_schur_lm";
+    return;
+  }
+  if (options.engine == BundleEngine::kAerotri) {
+    throw InvalidArgument("bundle adjustment: the aerotri engine does not apply: " + why_not);
+  }
+  ceres::Solve(solver_options, problem, &result->ceres);
+}
+
 RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
                       std::vector<Eigen::Vector3d>* gps_offsets, std::vector<Eigen::Vector3d>* gps_drift,
                       bool precision_pass = false) {
@@ -1144,9 +1177,6 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       result.gauge = config.Describe(*model, result.num_gps, result.num_gcp, result.offset_estimated);
       WriteBack(blocks, config, pose_a, model);
       return result;
-    }
-    if (options.engine == BundleEngine::kAerotri) {
-      throw InvalidArgument("bundle adjustment: the aerotri engine does not apply: " + why_not);
     }
   }
 
@@ -1185,7 +1215,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
           bundle.groups(), &result.groups);
     }
   } else if (problem.NumResidualBlocks() > 0) {
-    ceres::Solve(solver_options, &problem, &result.ceres);
+    SolveProblem(options, solver_options, bundle.EliminatedPoints(), &problem, &result);
     if (result.ceres.termination_type == ceres::USER_SUCCESS && forwarder) {
       // Our stopping rules (optimality gap, cost change) are convergence.
       result.ceres.termination_type = ceres::CONVERGENCE;

@@ -1,0 +1,651 @@
+// SPDX-License-Identifier: BSD-3-Clause
+#include "libphoto/adjust/schur_lm_solver.h"
+
+#include <ceres/cost_function.h>
+#include <ceres/loss_function.h>
+#include <ceres/manifold.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "libphoto/base/parallel.h"
+
+namespace aerotri {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// A varying block of the reduced system.
+struct FBlock {
+  double* x = nullptr;
+  int ambient = 0;
+  int tangent = 0;
+  int col = 0;  // first column in the reduced system
+  const ceres::Manifold* manifold = nullptr;
+};
+
+// One residual block: its parameters, each a point (-2), a reduced block
+// (index) or held (-1).
+struct Term {
+  const ceres::CostFunction* cost = nullptr;
+  const ceres::LossFunction* loss = nullptr;
+  std::vector<double*> params;
+  std::vector<int> kind;
+  int rows = 0;
+};
+constexpr int kPoint = -2;
+constexpr int kHeld = -1;
+
+// The problem's structure, read once.
+struct Structure {
+  std::vector<FBlock> blocks;
+  std::vector<double*> points;
+  std::vector<Term> terms;           // varying terms: each point's together, then the rest
+  std::vector<int> point_begin;      // terms of point p: [point_begin[p], point_begin[p + 1])
+  int first_other = 0;               // terms without a point start here
+  std::vector<Term> fixed;           // terms with nothing varying (their cost only)
+  int n = 0;                         // reduced columns
+  int num_residuals = 0;
+};
+
+// Reads the problem: false with the reason where the solver does not apply.
+bool ReadStructure(ceres::Problem& problem, const std::vector<double*>& points, Structure* s, std::string* why_not) {
+  std::unordered_map<const double*, int> point_of;
+  std::vector<double*> candidates;
+  for (double* p : points) {
+    if (!problem.HasParameterBlock(p) || problem.IsParameterBlockConstant(p)) continue;
+    if (problem.ParameterBlockSize(p) != 3 || problem.GetManifold(p) != nullptr) {
+      *why_not = "a point block is not a plain 3-vector";
+      return false;
+    }
+    point_of.emplace(p, static_cast<int>(candidates.size()));
+    candidates.push_back(p);
+  }
+  std::vector<ceres::ResidualBlockId> ids;
+  problem.GetResidualBlocks(&ids);
+  std::unordered_map<const double*, int> block_of;
+  std::vector<std::vector<Term>> by_point(candidates.size());
+  std::vector<Term> others;
+  std::vector<double*> params;
+  for (ceres::ResidualBlockId id : ids) {
+    Term t;
+    problem.GetParameterBlocksForResidualBlock(id, &params);
+    t.cost = problem.GetCostFunctionForResidualBlock(id);
+    t.loss = problem.GetLossFunctionForResidualBlock(id);
+    t.rows = t.cost->num_residuals();
+    t.params = params;
+    int point = -1, varying = 0;
+    for (double* b : params) {
+      if (auto it = point_of.find(b); it != point_of.end()) {
+        if (point >= 0 && point != it->second) {
+          *why_not = "a residual holds two points";
+          return false;
+        }
+        point = it->second;
+        t.kind.push_back(kPoint);
+        ++varying;
+        continue;
+      }
+      if (problem.IsParameterBlockConstant(b) || problem.ParameterBlockTangentSize(b) == 0) {
+        t.kind.push_back(kHeld);
+        continue;
+      }
+      auto [it, fresh] = block_of.emplace(b, static_cast<int>(s->blocks.size()));
+      if (fresh) {
+        FBlock f;
+        f.x = b;
+        f.ambient = problem.ParameterBlockSize(b);
+        f.tangent = problem.ParameterBlockTangentSize(b);
+        f.col = s->n;
+        f.manifold = problem.GetManifold(b);
+        s->n += f.tangent;
+        s->blocks.push_back(f);
+        if (s->n > kMaxSchurLmReducedSize) {
+          *why_not = "the reduced system has more than " + std::to_string(kMaxSchurLmReducedSize) + " columns";
+          return false;
+        }
+      }
+      t.kind.push_back(it->second);
+      ++varying;
+    }
+    if (varying == 0) {
+      s->fixed.push_back(std::move(t));
+      continue;
+    }
+    s->num_residuals += t.rows;
+    (point >= 0 ? by_point[point] : others).push_back(std::move(t));
+  }
+  s->point_begin.push_back(0);
+  for (size_t p = 0; p < candidates.size(); ++p) {
+    if (by_point[p].empty()) continue;
+    s->points.push_back(candidates[p]);
+    for (Term& t : by_point[p]) s->terms.push_back(std::move(t));
+    s->point_begin.push_back(static_cast<int>(s->terms.size()));
+  }
+  s->first_other = static_cast<int>(s->terms.size());
+  for (Term& t : others) s->terms.push_back(std::move(t));
+  return true;
+}
+
+// Ceres' robust-loss correction (Triggs): the residual and Jacobian rows
+// scaled so that the Gauss–Newton model of ½ρ(‖r‖²) is that of ½‖r‖².
+struct Corrector {
+  double cost = 0.0;  // ½ρ(‖r‖²)
+  double residual_scaling = 1.0;
+  double sqrt_rho1 = 1.0;
+  double alpha_sq_norm = 0.0;
+  Corrector(const ceres::LossFunction* loss, const double* r, int rows) {
+    double sq = 0.0;
+    for (int i = 0; i < rows; ++i) sq += r[i] * r[i];
+    if (loss == nullptr) {
+      cost = 0.5 * sq;
+      return;
+    }
+    double rho[3];
+    loss->Evaluate(sq, rho);
+    cost = 0.5 * rho[0];
+    sqrt_rho1 = std::sqrt(rho[1]);
+    if (sq == 0.0 || rho[2] <= 0.0) {
+      residual_scaling = sqrt_rho1;
+      return;
+    }
+    const double alpha = 1.0 - std::sqrt(1.0 + 2.0 * sq * rho[2] / rho[1]);
+    residual_scaling = sqrt_rho1 / (1.0 - alpha);
+    alpha_sq_norm = alpha / sq;
+  }
+  bool Identity() const { return residual_scaling == 1.0 && sqrt_rho1 == 1.0 && alpha_sq_norm == 0.0; }
+};
+
+class Solver {
+ public:
+  Solver(const ceres::Solver::Options& options, Structure* s)
+      : options_(options), s_(*s), threads_(ThreadCount(options.num_threads)) {
+    const int np = static_cast<int>(s_.points.size());
+    // Thread ranges of points with about equal numbers of terms.
+    ranges_.push_back(0);
+    for (unsigned t = 1; t < threads_; ++t) {
+      const int target = static_cast<int>(static_cast<long>(s_.first_other) * t / threads_);
+      int p = ranges_.back();
+      while (p < np && s_.point_begin[p] < target) ++p;
+      ranges_.push_back(p);
+    }
+    ranges_.push_back(np);
+    v_.resize(np);
+    vinv_.resize(np);
+    gx_.resize(np);
+    dx_.resize(np);
+    w_.resize(np);
+    cols_.resize(np);
+    plus_.resize(s_.blocks.size());
+    u_.resize(s_.n, s_.n);
+    gf_.resize(s_.n);
+    s_t_.assign(threads_, Eigen::MatrixXd());
+    b_t_.assign(threads_, Eigen::VectorXd());
+    fixed_cost_ = 0.0;
+    std::vector<double> r;
+    for (const Term& t : s_.fixed) {
+      r.resize(t.rows);
+      if (t.cost->Evaluate(t.params.data(), r.data(), nullptr)) fixed_cost_ += Corrector(t.loss, r.data(), t.rows).cost;
+    }
+  }
+
+  void Solve(ceres::Solver::Summary* summary) {
+    const auto start = Clock::now();
+    ceres::Solver::Summary& out = *summary;
+    out = ceres::Solver::Summary();
+    out.linear_solver_type_given = out.linear_solver_type_used = ceres::DENSE_SCHUR;
+    out.num_residual_blocks_reduced = static_cast<int>(s_.terms.size());
+    out.num_residuals_reduced = s_.num_residuals;
+    out.num_parameter_blocks_reduced = static_cast<int>(s_.blocks.size() + s_.points.size());
+    out.num_effective_parameters_reduced = s_.n + 3 * static_cast<int>(s_.points.size());
+    out.num_threads_given = out.num_threads_used = static_cast<int>(threads_);
+    out.fixed_cost = fixed_cost_;
+
+    double cost = 0.0;
+    if (!Cost(&cost)) {
+      out.termination_type = ceres::FAILURE;
+      out.message = "the residuals cannot be evaluated at the start";
+      out.initial_cost = out.final_cost = std::numeric_limits<double>::infinity();
+      out.total_time_in_seconds = Since(start);
+      return;
+    }
+    out.initial_cost = out.final_cost = cost + fixed_cost_;
+    ceres::IterationSummary it0;
+    it0.cost = cost + fixed_cost_;
+    it0.step_is_valid = it0.step_is_successful = true;
+    it0.cumulative_time_in_seconds = Since(start);
+    out.iterations.push_back(it0);
+    if (Callbacks(it0, &out)) return Finish(start, cost, &out);
+
+    double radius = options_.initial_trust_region_radius;
+    double decrease_factor = 2.0;
+    bool relinearize = true;
+    out.termination_type = ceres::NO_CONVERGENCE;
+    out.message = "Maximum number of iterations reached. Number of iterations: " +
+                  std::to_string(options_.max_num_iterations) + ".";
+    int iteration = 0;
+    while (iteration < options_.max_num_iterations) {
+      if (Since(start) > options_.max_solver_time_in_seconds) {
+        out.message = "Maximum solver time reached.";
+        break;
+      }
+      if (relinearize) {
+        Linearize();
+        relinearize = false;
+        if (max_gradient_ <= options_.gradient_tolerance) {
+          out.termination_type = ceres::CONVERGENCE;
+          out.message = "Gradient tolerance reached. Gradient max norm: " + std::to_string(max_gradient_);
+          break;
+        }
+      }
+      ++iteration;
+      ceres::IterationSummary it;
+      it.iteration = iteration;
+      it.trust_region_radius = radius;
+      double predicted = 0.0, step_norm = 0.0, trial = std::numeric_limits<double>::infinity();
+      Eliminate(1.0 / radius);
+      const bool solved = SolveReduced(1.0 / radius, &predicted, &step_norm);
+      bool evaluated = false;
+      if (solved) {
+        if (step_norm <= options_.parameter_tolerance * (StateNorm() + options_.parameter_tolerance)) {
+          out.termination_type = ceres::CONVERGENCE;
+          out.message = "Parameter tolerance reached. Relative step_norm: " + std::to_string(step_norm);
+          break;
+        }
+        SaveAndStep();
+        evaluated = Cost(&trial);
+      }
+      const double rho = (evaluated && predicted > 0.0) ? (cost - trial) / predicted : -1.0;
+      it.step_norm = step_norm;
+      it.relative_decrease = rho;
+      it.step_is_valid = solved && evaluated;
+      if (rho > options_.min_relative_decrease) {
+        const double old_cost = cost;
+        cost = trial;
+        radius = std::min(options_.max_trust_region_radius,
+                          radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
+        decrease_factor = 2.0;
+        relinearize = true;
+        it.step_is_successful = true;
+        it.cost = cost + fixed_cost_;
+        it.cost_change = old_cost - cost;
+        it.cumulative_time_in_seconds = Since(start);
+        out.iterations.push_back(it);
+        if (Callbacks(it, &out)) return Finish(start, cost, &out);
+        if (std::abs(old_cost - cost) <= options_.function_tolerance * old_cost) {
+          out.termination_type = ceres::CONVERGENCE;
+          out.message = "Function tolerance reached. |cost_change|/cost: " +
+                        std::to_string(std::abs(old_cost - cost) / old_cost);
+          break;
+        }
+      } else {
+        if (solved) Restore();
+        radius /= decrease_factor;
+        decrease_factor *= 2.0;
+        it.cost = cost + fixed_cost_;
+        it.cumulative_time_in_seconds = Since(start);
+        out.iterations.push_back(it);
+        if (Callbacks(it, &out)) return Finish(start, cost, &out);
+        if (radius < options_.min_trust_region_radius) {
+          out.termination_type = ceres::CONVERGENCE;
+          out.message = "Minimum trust region radius reached. Trust region radius: " + std::to_string(radius);
+          break;
+        }
+      }
+    }
+    Finish(start, cost, &out);
+  }
+
+ private:
+  void Finish(Clock::time_point start, double cost, ceres::Solver::Summary* out) const {
+    out->final_cost = cost + fixed_cost_;
+    out->total_time_in_seconds = out->minimizer_time_in_seconds = Since(start);
+  }
+
+  // The options' callbacks; true when one ends the solve.
+  bool Callbacks(const ceres::IterationSummary& it, ceres::Solver::Summary* out) const {
+    for (ceres::IterationCallback* callback : options_.callbacks) {
+      const ceres::CallbackReturnType r = (*callback)(it);
+      if (r == ceres::SOLVER_TERMINATE_SUCCESSFULLY) {
+        out->termination_type = ceres::USER_SUCCESS;
+        out->message = "User callback returned SOLVER_TERMINATE_SUCCESSFULLY.";
+        return true;
+      }
+      if (r == ceres::SOLVER_ABORT) {
+        out->termination_type = ceres::USER_FAILURE;
+        out->message = "User callback returned SOLVER_ABORT.";
+        return true;
+      }
+    }
+    return false;
+  }
+
+  // One term's residual and, with `jac`, its Jacobians in tangent
+  // coordinates (rows x tangent, row-major, per parameter; none for held
+  // ones), the loss's correction applied. False where it cannot be evaluated.
+  struct Scratch {
+    std::vector<double> r;
+    std::vector<RowMajor> ambient, tangent;
+    std::vector<double*> ptrs;
+  };
+  bool Evaluate(const Term& t, Scratch* sc, bool jac, double* cost) const {
+    sc->r.resize(t.rows);
+    const size_t k = t.params.size();
+    if (jac) {
+      sc->ambient.resize(k);
+      sc->tangent.resize(k);
+      sc->ptrs.assign(k, nullptr);
+      for (size_t i = 0; i < k; ++i) {
+        if (t.kind[i] == kHeld) continue;
+        const int ambient = t.kind[i] == kPoint ? 3 : s_.blocks[t.kind[i]].ambient;
+        sc->ambient[i].resize(t.rows, ambient);
+        sc->ptrs[i] = sc->ambient[i].data();
+      }
+    }
+    if (!t.cost->Evaluate(t.params.data(), sc->r.data(), jac ? sc->ptrs.data() : nullptr)) return false;
+    for (double v : sc->r) {
+      if (!std::isfinite(v)) return false;
+    }
+    const Corrector c(t.loss, sc->r.data(), t.rows);
+    *cost = c.cost;
+    if (!jac) return true;
+    Eigen::Map<Eigen::VectorXd> r(sc->r.data(), t.rows);
+    for (size_t i = 0; i < k; ++i) {
+      if (t.kind[i] == kHeld) continue;
+      RowMajor& j = sc->tangent[i];
+      if (t.kind[i] == kPoint || s_.blocks[t.kind[i]].manifold == nullptr) {
+        j = sc->ambient[i];
+      } else {
+        j.noalias() = sc->ambient[i] * plus_[t.kind[i]];
+      }
+      if (!c.Identity()) {
+        if (c.alpha_sq_norm != 0.0) j -= c.alpha_sq_norm * r * (r.transpose() * j);
+        j *= c.sqrt_rho1;
+      }
+    }
+    if (!c.Identity()) r *= c.residual_scaling;
+    return true;
+  }
+
+  // ½Σρ at the problem's current values (held terms apart).
+  bool Cost(double* cost) const {
+    const int nt = static_cast<int>(s_.terms.size());
+    std::vector<double> part(threads_, 0.0);
+    std::vector<char> ok(threads_, 1);
+    ParallelFor(threads_, threads_, [&](size_t th) {
+      Scratch sc;
+      double sum = 0.0, c = 0.0;
+      const int begin = static_cast<int>(static_cast<long>(nt) * th / threads_);
+      const int end = static_cast<int>(static_cast<long>(nt) * (th + 1) / threads_);
+      for (int i = begin; i < end; ++i) {
+        if (!Evaluate(s_.terms[i], &sc, false, &c)) {
+          ok[th] = 0;
+          return;
+        }
+        sum += c;
+      }
+      part[th] = sum;
+    });
+    *cost = 0.0;
+    for (unsigned th = 0; th < threads_; ++th) {
+      if (!ok[th]) return false;
+      *cost += part[th];
+    }
+    return std::isfinite(*cost);
+  }
+
+  // JᵀJ and Jᵀr of one term's reduced cells into (u, g), lower triangle.
+  void AddReduced(const Term& t, const Scratch& sc, Eigen::MatrixXd* u, Eigen::VectorXd* g) const {
+    const Eigen::Map<const Eigen::VectorXd> r(sc.r.data(), t.rows);
+    for (size_t a = 0; a < t.params.size(); ++a) {
+      if (t.kind[a] < 0) continue;
+      const FBlock& fa = s_.blocks[t.kind[a]];
+      g->segment(fa.col, fa.tangent).noalias() += sc.tangent[a].transpose() * r;
+      for (size_t b = 0; b < t.params.size(); ++b) {
+        if (t.kind[b] < 0) continue;
+        const FBlock& fb = s_.blocks[t.kind[b]];
+        if (fa.col < fb.col) continue;  // the lower triangle (and whole diagonal blocks)
+        u->block(fa.col, fb.col, fa.tangent, fb.tangent).noalias() += sc.tangent[a].transpose() * sc.tangent[b];
+      }
+    }
+  }
+
+  // The normal equations' blocks at the current values: U and g_f of the
+  // reduced system, and per point V, g_x and W (3 x its reduced columns).
+  void Linearize() {
+    for (size_t b = 0; b < s_.blocks.size(); ++b) {
+      const FBlock& f = s_.blocks[b];
+      if (f.manifold == nullptr) continue;
+      plus_[b].resize(f.ambient, f.tangent);
+      f.manifold->PlusJacobian(f.x, plus_[b].data());
+    }
+    ParallelFor(threads_, threads_, [&](size_t th) {
+      Eigen::MatrixXd& u = s_t_[th];
+      Eigen::VectorXd& g = b_t_[th];
+      u.setZero(s_.n, s_.n);
+      g.setZero(s_.n);
+      Scratch sc;
+      std::vector<int> local(s_.blocks.size(), -1);
+      double c = 0.0;
+      for (int p = ranges_[th]; p < ranges_[th + 1]; ++p) {
+        std::vector<int>& cols = cols_[p];
+        cols.clear();
+        int width = 0;
+        for (int i = s_.point_begin[p]; i < s_.point_begin[p + 1]; ++i) {
+          for (int kind : s_.terms[i].kind) {
+            if (kind >= 0 && local[kind] < 0) {
+              local[kind] = width;
+              width += s_.blocks[kind].tangent;
+              cols.push_back(kind);
+            }
+          }
+        }
+        Eigen::Matrix3d v = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d gx = Eigen::Vector3d::Zero();
+        Eigen::Matrix<double, 3, Eigen::Dynamic>& w = w_[p];
+        w.setZero(3, width);
+        for (int i = s_.point_begin[p]; i < s_.point_begin[p + 1]; ++i) {
+          const Term& t = s_.terms[i];
+          // Evaluated when its state was accepted: defined here.
+          Evaluate(t, &sc, true, &c);
+          const Eigen::Map<const Eigen::VectorXd> r(sc.r.data(), t.rows);
+          int x = -1;
+          for (size_t a = 0; a < t.params.size(); ++a) {
+            if (t.kind[a] == kPoint) x = static_cast<int>(a);
+          }
+          const RowMajor& jx = sc.tangent[x];
+          v.noalias() += jx.transpose() * jx;
+          gx.noalias() += jx.transpose() * r;
+          for (size_t a = 0; a < t.params.size(); ++a) {
+            if (t.kind[a] < 0) continue;
+            w.middleCols(local[t.kind[a]], s_.blocks[t.kind[a]].tangent).noalias() += jx.transpose() * sc.tangent[a];
+          }
+          AddReduced(t, sc, &u, &g);
+        }
+        for (int kind : cols) local[kind] = -1;
+        v_[p] = v;
+        gx_[p] = gx;
+      }
+    });
+    Scratch sc;
+    double c = 0.0;
+    for (size_t i = s_.first_other; i < s_.terms.size(); ++i) {
+      Evaluate(s_.terms[i], &sc, true, &c);
+      AddReduced(s_.terms[i], sc, &s_t_[0], &b_t_[0]);
+    }
+    u_ = s_t_[0];
+    gf_ = b_t_[0];
+    for (unsigned th = 1; th < threads_; ++th) {
+      u_.triangularView<Eigen::Lower>() += s_t_[th];
+      gf_ += b_t_[th];
+    }
+    max_gradient_ = gf_.size() > 0 ? gf_.cwiseAbs().maxCoeff() : 0.0;
+    for (const Eigen::Vector3d& g : gx_) max_gradient_ = std::max(max_gradient_, g.cwiseAbs().maxCoeff());
+  }
+
+  static double Damp(double diagonal, double lambda) {
+    return std::clamp(diagonal, 1e-6, 1e32) * lambda;
+  }
+
+  // S = U* − Σ Wᵀ V*⁻¹ W and b = −g_f + Σ Wᵀ V*⁻¹ g_x, damped by lambda
+  // (lower triangle of S).
+  void Eliminate(double lambda) {
+    ParallelFor(threads_, threads_, [&](size_t th) {
+      Eigen::MatrixXd& s = s_t_[th];
+      Eigen::VectorXd& b = b_t_[th];
+      s.setZero(s_.n, s_.n);
+      b.setZero(s_.n);
+      Eigen::Matrix<double, 3, Eigen::Dynamic> y;
+      Eigen::MatrixXd m;
+      for (int p = ranges_[th]; p < ranges_[th + 1]; ++p) {
+        Eigen::Matrix3d v = v_[p];
+        for (int i = 0; i < 3; ++i) v(i, i) += Damp(v(i, i), lambda);
+        vinv_[p] = v.inverse();
+        const auto& w = w_[p];
+        y.noalias() = vinv_[p] * w;
+        m.noalias() = w.transpose() * y;
+        const Eigen::VectorXd wg = y.transpose() * gx_[p];
+        const std::vector<int>& cols = cols_[p];
+        for (size_t a = 0, la = 0; a < cols.size(); la += s_.blocks[cols[a]].tangent, ++a) {
+          const FBlock& fa = s_.blocks[cols[a]];
+          b.segment(fa.col, fa.tangent) += wg.segment(la, fa.tangent);
+          for (size_t c = 0, lc = 0; c < cols.size(); lc += s_.blocks[cols[c]].tangent, ++c) {
+            const FBlock& fc = s_.blocks[cols[c]];
+            if (fa.col < fc.col) continue;
+            s.block(fa.col, fc.col, fa.tangent, fc.tangent) -= m.block(la, lc, fa.tangent, fc.tangent);
+          }
+        }
+      }
+    });
+    for (unsigned th = 1; th < threads_; ++th) {
+      s_t_[0].triangularView<Eigen::Lower>() += s_t_[th];
+      b_t_[0] += b_t_[th];
+    }
+    s_t_[0].triangularView<Eigen::Lower>() += u_;
+    for (int i = 0; i < s_.n; ++i) s_t_[0](i, i) += Damp(u_(i, i), lambda);
+    b_t_[0] -= gf_;
+  }
+
+  // The reduced step by Cholesky, the points' back-substitution; the model's
+  // predicted decrease ½(−gᵀδ + λ δᵀDδ) and |δ|. False where S is not
+  // positive definite.
+  bool SolveReduced(double lambda, double* predicted, double* step_norm) {
+    df_ = Eigen::VectorXd::Zero(s_.n);
+    if (s_.n > 0) {
+      Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(s_t_[0]);
+      if (llt.info() != Eigen::Success) return false;
+      df_ = llt.solve(b_t_[0]);
+      if (!df_.allFinite()) return false;
+    }
+    std::vector<double> part(threads_, 0.0), norm2(threads_, 0.0);
+    ParallelFor(threads_, threads_, [&](size_t th) {
+      double pred = 0.0, n2 = 0.0;
+      Eigen::VectorXd local;
+      for (int p = ranges_[th]; p < ranges_[th + 1]; ++p) {
+        const std::vector<int>& cols = cols_[p];
+        local.resize(w_[p].cols());
+        for (size_t a = 0, la = 0; a < cols.size(); la += s_.blocks[cols[a]].tangent, ++a) {
+          const FBlock& f = s_.blocks[cols[a]];
+          local.segment(la, f.tangent) = df_.segment(f.col, f.tangent);
+        }
+        dx_[p] = vinv_[p] * (-gx_[p] - w_[p] * local);
+        for (int i = 0; i < 3; ++i) pred += -gx_[p](i) * dx_[p](i) + Damp(v_[p](i, i), lambda) * dx_[p](i) * dx_[p](i);
+        n2 += dx_[p].squaredNorm();
+      }
+      part[th] = pred;
+      norm2[th] = n2;
+    });
+    double pred = 0.0, n2 = 0.0;
+    for (unsigned th = 0; th < threads_; ++th) {
+      pred += part[th];
+      n2 += norm2[th];
+    }
+    for (int i = 0; i < s_.n; ++i) {
+      pred += -gf_(i) * df_(i) + Damp(u_(i, i), lambda) * df_(i) * df_(i);
+      n2 += df_(i) * df_(i);
+    }
+    *predicted = 0.5 * pred;
+    *step_norm = std::sqrt(n2);
+    return std::isfinite(*predicted);
+  }
+
+  double StateNorm() const {
+    double n2 = 0.0;
+    for (const FBlock& f : s_.blocks) {
+      for (int k = 0; k < f.ambient; ++k) n2 += f.x[k] * f.x[k];
+    }
+    for (const double* p : s_.points) n2 += p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+    return std::sqrt(n2);
+  }
+
+  // The step applied in place, the values it replaced kept.
+  void SaveAndStep() {
+    saved_.clear();
+    for (const FBlock& f : s_.blocks) saved_.insert(saved_.end(), f.x, f.x + f.ambient);
+    for (const double* p : s_.points) saved_.insert(saved_.end(), p, p + 3);
+    std::vector<double> next;
+    size_t k = 0;
+    for (const FBlock& f : s_.blocks) {
+      const double* from = &saved_[k];
+      if (f.manifold != nullptr) {
+        f.manifold->Plus(from, df_.data() + f.col, f.x);
+      } else {
+        for (int i = 0; i < f.ambient; ++i) f.x[i] = from[i] + df_(f.col + i);
+      }
+      k += f.ambient;
+    }
+    for (size_t p = 0; p < s_.points.size(); ++p) {
+      for (int i = 0; i < 3; ++i) s_.points[p][i] = saved_[k + 3 * p + i] + dx_[p](i);
+    }
+  }
+
+  void Restore() {
+    size_t k = 0;
+    for (const FBlock& f : s_.blocks) {
+      std::copy(&saved_[k], &saved_[k] + f.ambient, f.x);
+      k += f.ambient;
+    }
+    for (double* p : s_.points) {
+      std::copy(&saved_[k], &saved_[k] + 3, p);
+      k += 3;
+    }
+  }
+
+  const ceres::Solver::Options& options_;
+  Structure& s_;
+  unsigned threads_;
+  std::vector<int> ranges_;
+  std::vector<Eigen::Matrix3d> v_, vinv_;
+  std::vector<Eigen::Vector3d> gx_, dx_;
+  std::vector<Eigen::Matrix<double, 3, Eigen::Dynamic>> w_;
+  std::vector<std::vector<int>> cols_;
+  std::vector<RowMajor> plus_;
+  Eigen::MatrixXd u_;
+  Eigen::VectorXd gf_, df_;
+  std::vector<Eigen::MatrixXd> s_t_;
+  std::vector<Eigen::VectorXd> b_t_;
+  std::vector<double> saved_;
+  double fixed_cost_ = 0.0;
+  double max_gradient_ = 0.0;
+};
+
+}  // namespace
+
+bool SolveSchurLm(const ceres::Solver::Options& options, ceres::Problem* problem, const std::vector<double*>& points,
+                  ceres::Solver::Summary* summary, std::string* why_not) {
+  Structure s;
+  if (!ReadStructure(*problem, points, &s, why_not)) return false;
+  Solver solver(options, &s);
+  solver.Solve(summary);
+  return true;
+}
+
+}  // namespace aerotri
