@@ -1158,7 +1158,7 @@ void SolveProblem(const BundleOptions& options, const ceres::Solver::Options& so
 
 RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
                       std::vector<Eigen::Vector3d>* gps_offsets, std::vector<Eigen::Vector3d>* gps_drift,
-                      bool precision_pass = false) {
+                      bool precision_pass = false, bool covariance_pass = false) {
   const auto setup_start = Clock::now();
   RoundResult result;
   const BundleConfig config = ConfigureBundle(*model, options);
@@ -1170,7 +1170,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   const Pose pose_a = config.image_a >= 0 ? model->images[config.image_a].pose : Pose();
   ProblemBlocks blocks = MakeProblemBlocks(*model, config, options.estimate_readout);
 
-  if (!precision_pass) {
+  if (!precision_pass && !covariance_pass) {
     std::string why_not;
     result.setup_s = SecondsSince(setup_start);
     if (SolveWithDenseSchur(model, options, config, round, &blocks, &result, &why_not)) {
@@ -1213,6 +1213,12 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
           &problem, model, config.image_used, config.point_used, blocks.rotations, &blocks.readout, bundle.mark_blocks(),
           [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offsets, gps_drift,
           bundle.groups(), &result.groups);
+    }
+  } else if (covariance_pass) {
+    if (config.AnyMerged()) {
+      result.covariance_note = "not computed: images with a camera group of their own";
+    } else {
+      IntrinsicsCovariance(&problem, model, config.image_used, config.refined, options, &result);
     }
   } else if (problem.NumResidualBlocks() > 0) {
     SolveProblem(options, solver_options, bundle.EliminatedPoints(), &problem, &result);
@@ -1689,7 +1695,7 @@ void VarianceComponentsOf(const BundleRun& run, const RoundResult& pass, const B
 // estimated is decided at the stated weights: a group with too little
 // redundancy of its own to judge (a handful of control points that hold the
 // datum) keeps its stated sigmas throughout.
-void PrecisionWithVarianceComponents(BundleRun* run, const BundleOptions& estimate) {
+BundleOptions PrecisionWithVarianceComponents(BundleRun* run, const BundleOptions& estimate) {
   const BundleOptions& options = run->options;
   BundleSummary& summary = run->summary;
   summary.sigma0_stated = summary.sigma0;
@@ -1714,7 +1720,7 @@ void PrecisionWithVarianceComponents(BundleRun* run, const BundleOptions& estima
   }
   summary.precision = std::move(pass.posterior);
   BundlePrecision& p = summary.precision;
-  if (!p.computed) return;
+  if (!p.computed) return weighted;
   p.variance_factor = summary.sigma0 > 0.0 ? summary.sigma0 * summary.sigma0 : 1.0;
   for (ImagePrecision& ip : p.images) {
     ip.centre_cov *= p.variance_factor;
@@ -1725,6 +1731,16 @@ void PrecisionWithVarianceComponents(BundleRun* run, const BundleOptions& estima
   for (Eigen::Matrix3d& c : p.gps_flight_offset_cov) c *= p.variance_factor;
   for (Eigen::Matrix3d& c : p.gps_drift_cov) c *= p.variance_factor;
   for (double& v : p.readout_var) v *= p.variance_factor;
+  return weighted;
+}
+
+// The intrinsics' covariance at the final state and weights (`last`, the
+// options of the last solve), once: the solves before it skip theirs.
+void FinalIntrinsicsCovariance(BundleRun* run, const BundleOptions& last) {
+  const RoundResult r = SolveOnce(run->model, last, run->solve, &run->gps_offsets, &run->gps_drift,
+                                  /*precision_pass=*/false, /*covariance_pass=*/true);
+  run->summary.intrinsics_precision = r.precision;
+  run->summary.covariance_note = r.covariance_note;
 }
 
 // Each camera group's estimated readout time (BundleOptions::
@@ -1777,7 +1793,11 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   if (!options.Validate(&error)) throw InvalidArgument("bundle adjustment: " + error);
   model->Validate();
 
-  BundleRun run{model, options, BundleSummary(), {}, {}, 0};
+  // The solves skip the intrinsics' covariance; the final state's is
+  // computed once at the end (FinalIntrinsicsCovariance).
+  BundleOptions solving = options;
+  solving.compute_intrinsics_covariance = false;
+  BundleRun run{model, solving, BundleSummary(), {}, {}, 0};
   BundleSummary& summary = run.summary;
   if (options.compute_diagnostics) summary.num_behind_camera_initial = CountBehindCamera(*model);
   summary.initial_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
@@ -1790,7 +1810,11 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   }
   StartGnssParameters(&run);
   const BundleOptions estimate = SolveWithOutlierRounds(&run);
-  if (options.compute_precision) PrecisionWithVarianceComponents(&run, estimate);
+  BundleOptions last = options.compute_precision ? PrecisionWithVarianceComponents(&run, estimate) : estimate;
+  if (options.compute_intrinsics_covariance) {
+    last.compute_intrinsics_covariance = true;
+    FinalIntrinsicsCovariance(&run, last);
+  }
   if (options.estimate_readout) ReportReadouts(*model, &summary);
 
   std::vector<char> used(model->cameras.size(), 0);

@@ -202,6 +202,8 @@ class Solver {
     ceres::Solver::Summary& out = *summary;
     out = ceres::Solver::Summary();
     out.linear_solver_type_given = out.linear_solver_type_used = ceres::DENSE_SCHUR;
+    out.jacobian_evaluation_time_in_seconds = out.linear_solver_time_in_seconds = 0.0;
+    out.residual_evaluation_time_in_seconds = 0.0;
     out.num_residual_blocks_reduced = static_cast<int>(s_.terms.size());
     out.num_residuals_reduced = s_.num_residuals;
     out.num_parameter_blocks_reduced = static_cast<int>(s_.blocks.size() + s_.points.size());
@@ -238,7 +240,9 @@ class Solver {
         break;
       }
       if (relinearize) {
+        const auto t = Clock::now();
         Linearize();
+        out.jacobian_evaluation_time_in_seconds += Since(t);
         relinearize = false;
         if (max_gradient_ <= options_.gradient_tolerance) {
           out.termination_type = ceres::CONVERGENCE;
@@ -251,8 +255,10 @@ class Solver {
       it.iteration = iteration;
       it.trust_region_radius = radius;
       double predicted = 0.0, step_norm = 0.0, trial = std::numeric_limits<double>::infinity();
+      auto t = Clock::now();
       Eliminate(1.0 / radius);
       const bool solved = SolveReduced(1.0 / radius, &predicted, &step_norm);
+      out.linear_solver_time_in_seconds += Since(t);
       bool evaluated = false;
       if (solved) {
         if (step_norm <= options_.parameter_tolerance * (StateNorm() + options_.parameter_tolerance)) {
@@ -261,7 +267,9 @@ class Solver {
           break;
         }
         SaveAndStep();
+        t = Clock::now();
         evaluated = Cost(&trial);
+        out.residual_evaluation_time_in_seconds += Since(t);
       }
       const double rho = (evaluated && predicted > 0.0) ? (cost - trial) / predicted : -1.0;
       it.step_norm = step_norm;
@@ -335,6 +343,8 @@ class Solver {
     std::vector<double> r;
     std::vector<RowMajor> ambient, tangent;
     std::vector<double*> ptrs;
+    RowMajor reduced;
+    Eigen::MatrixXd jtj;
   };
   bool Evaluate(const Term& t, Scratch* sc, bool jac, double* cost) const {
     sc->r.resize(t.rows);
@@ -402,19 +412,37 @@ class Solver {
     return std::isfinite(*cost);
   }
 
-  // JᵀJ and Jᵀr of one term's reduced cells into (u, g), lower triangle.
-  void AddReduced(const Term& t, const Scratch& sc, Eigen::MatrixXd* u, Eigen::VectorXd* g) const {
-    const Eigen::Map<const Eigen::VectorXd> r(sc.r.data(), t.rows);
+  // JᵀJ and Jᵀr of one term's reduced cells into (u, g), lower triangle:
+  // its reduced Jacobian gathered into one row-major block, one product.
+  void AddReduced(const Term& t, Scratch* sc, Eigen::MatrixXd* u, Eigen::VectorXd* g) const {
+    const Eigen::Map<const Eigen::VectorXd> r(sc->r.data(), t.rows);
+    int width = 0;
     for (size_t a = 0; a < t.params.size(); ++a) {
+      if (t.kind[a] >= 0) width += s_.blocks[t.kind[a]].tangent;
+    }
+    RowMajor& j = sc->reduced;
+    j.resize(t.rows, width);
+    for (size_t a = 0, at = 0; a < t.params.size(); ++a) {
+      if (t.kind[a] < 0) continue;
+      const int n = s_.blocks[t.kind[a]].tangent;
+      j.middleCols(at, n) = sc->tangent[a];
+      at += n;
+    }
+    Eigen::MatrixXd& jtj = sc->jtj;
+    jtj.noalias() = j.transpose().lazyProduct(j);
+    const Eigen::VectorXd jtr = j.transpose() * r;
+    for (size_t a = 0, at = 0; a < t.params.size(); ++a) {
       if (t.kind[a] < 0) continue;
       const FBlock& fa = s_.blocks[t.kind[a]];
-      g->segment(fa.col, fa.tangent).noalias() += sc.tangent[a].transpose() * r;
-      for (size_t b = 0; b < t.params.size(); ++b) {
+      g->segment(fa.col, fa.tangent) += jtr.segment(at, fa.tangent);
+      for (size_t b = 0, bt = 0; b < t.params.size(); ++b) {
         if (t.kind[b] < 0) continue;
         const FBlock& fb = s_.blocks[t.kind[b]];
-        if (fa.col < fb.col) continue;  // the lower triangle (and whole diagonal blocks)
-        u->block(fa.col, fb.col, fa.tangent, fb.tangent).noalias() += sc.tangent[a].transpose() * sc.tangent[b];
+        // The lower triangle (and whole diagonal blocks).
+        if (fa.col >= fb.col) u->block(fa.col, fb.col, fa.tangent, fb.tangent) += jtj.block(at, bt, fa.tangent, fb.tangent);
+        bt += fb.tangent;
       }
+      at += fa.tangent;
     }
   }
 
@@ -468,7 +496,7 @@ class Solver {
             if (t.kind[a] < 0) continue;
             w.middleCols(local[t.kind[a]], s_.blocks[t.kind[a]].tangent).noalias() += jx.transpose() * sc.tangent[a];
           }
-          AddReduced(t, sc, &u, &g);
+          AddReduced(t, &sc, &u, &g);
         }
         for (int kind : cols) local[kind] = -1;
         v_[p] = v;
@@ -479,7 +507,7 @@ class Solver {
     double c = 0.0;
     for (size_t i = s_.first_other; i < s_.terms.size(); ++i) {
       Evaluate(s_.terms[i], &sc, true, &c);
-      AddReduced(s_.terms[i], sc, &s_t_[0], &b_t_[0]);
+      AddReduced(s_.terms[i], &sc, &s_t_[0], &b_t_[0]);
     }
     u_ = s_t_[0];
     gf_ = b_t_[0];
@@ -510,8 +538,8 @@ class Solver {
         for (int i = 0; i < 3; ++i) v(i, i) += Damp(v(i, i), lambda);
         vinv_[p] = v.inverse();
         const auto& w = w_[p];
-        y.noalias() = vinv_[p] * w;
-        m.noalias() = w.transpose() * y;
+        y.noalias() = vinv_[p].lazyProduct(w);
+        m.noalias() = w.transpose().lazyProduct(y);
         const Eigen::VectorXd wg = y.transpose() * gx_[p];
         const std::vector<int>& cols = cols_[p];
         for (size_t a = 0, la = 0; a < cols.size(); la += s_.blocks[cols[a]].tangent, ++a) {
