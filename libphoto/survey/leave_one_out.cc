@@ -27,6 +27,7 @@ BundleOptions WarmOptions(const SurveyState& s) {
   o.initial_gps_flight_offsets_m = b.gps_flight_offsets_m;
   if (b.gps_drift_estimated) o.initial_gps_drift_m_per_s = b.gps_drift_m_per_s;
   o.iteration_callback = nullptr;
+  o.withhold_points.clear();
   return o;
 }
 
@@ -63,6 +64,29 @@ void Apply(const WithheldPoint& w, SparseModel* model, WithheldPoint* undo) {
 
 }  // namespace
 
+// The control points leave-one-out withholds (those in use), when it runs:
+// 4 or more, so that 3 hold the datum without the one.
+std::vector<const SurveyedPoint*> ControlToWithhold(const SurveyState& s) {
+  std::vector<const SurveyedPoint*> control;
+  if (!s.Options().leave_one_out) return control;
+  for (const SurveyedPoint& p : s.surveyed) {
+    if (p.role == PointRole::kControl && p.excluded.empty()) control.push_back(&p);
+  }
+  return control;
+}
+
+void WithholdControl(SurveyState* s) {
+  BundleOptions& b = s->bundle;
+  b.withhold_points.clear();
+  const std::vector<const SurveyedPoint*> control = ControlToWithhold(*s);
+  // The final pass must be the least-squares estimate's, as a re-solve's
+  // from the optimum would be (WarmOptions).
+  const bool least_squares = b.loss == LossType::kNone || (b.least_squares_after_screening &&
+                                                           b.outlier_threshold_px > 0.0 && b.max_outlier_rounds > 0);
+  if (control.size() < 4 || !b.compute_precision || !least_squares) return;
+  for (const SurveyedPoint* p : control) b.withhold_points.push_back(p->point_index);
+}
+
 // Each control point withheld in turn, from the survey's own optimum: its
 // prior and its marks taken out (with check points in the bundle, its prior
 // only), and the point triangulated from the cameras as an independent
@@ -82,10 +106,7 @@ void LeaveControlOut(SurveyState* s) {
   if (!options.leave_one_out) return;
   LeaveOneOut& loo = s->report.leave_one_out;
   const auto loo_start = std::chrono::steady_clock::now();
-  std::vector<const SurveyedPoint*> control;
-  for (const SurveyedPoint& p : s->surveyed) {
-    if (p.role == PointRole::kControl && p.excluded.empty()) control.push_back(&p);
-  }
+  const std::vector<const SurveyedPoint*> control = ControlToWithhold(*s);
   const int n = static_cast<int>(control.size());
   if (n < 4) {
     loo.note = "needs 4 or more control points (have " + std::to_string(n) + "): 3 must hold the datum";
@@ -99,17 +120,25 @@ void LeaveControlOut(SurveyState* s) {
   for (const auto& [index, prior] : s->rejected_gps) base.images[index].gps_prior.reset();
   const bool in_bundle = warm.check_points_in_bundle;
 
-  // The optimum once more with these options (a step or two), and each
-  // point's update from its normal equations.
+  // Each point's update from the normal equations at the survey's optimum:
+  // its own final precision pass computed them (WithholdControl), else the
+  // optimum once more with the survey's final weights (a step or two) and
+  // a precision pass.
   ReportProgress(options.progress, 0.9, "leave-one-out: the block without each control point");
-  BundleOptions updates = warm;
-  updates.compute_precision = true;
-  for (const SurveyedPoint* p : control) updates.withhold_points.push_back(p->point_index);
-  const BundleSummary solved = AdjustBundle(&base, updates);
-  ++loo.adjustments;
-  loo.iterations += solved.iterations;
+  const std::vector<WithheldPoint>* withheld = &s->report.bundle.precision.withheld;
+  BundleSummary solved;
+  if (withheld->size() != control.size()) {
+    BundleOptions updates = warm;
+    updates.compute_precision = true;
+    updates.withhold_points.clear();
+    for (const SurveyedPoint* p : control) updates.withhold_points.push_back(p->point_index);
+    solved = AdjustBundle(&base, updates);
+    ++loo.adjustments;
+    loo.iterations += solved.iterations;
+    withheld = &solved.precision.withheld;
+  }
   std::map<int, const WithheldPoint*> update_of;
-  for (const WithheldPoint& w : solved.precision.withheld) {
+  for (const WithheldPoint& w : *withheld) {
     if (w.computed) update_of.emplace(w.point, &w);
   }
   std::vector<Eigen::Vector3d> d;

@@ -198,6 +198,11 @@ void SnoopTargetMarks(SurveyState* s);
 // Leave-one-out: each control point withheld from its own adjustment
 // (GeoreferenceOptions::leave_one_out).
 void LeaveControlOut(SurveyState* s);
+// With leave-one-out asked for: the adjustment's precision passes compute
+// each control point's block-deletion update (s->bundle.withhold_points),
+// so that LeaveControlOut takes them from the survey's final pass instead
+// of solving and inverting once more.
+void WithholdControl(SurveyState* s);
 
 // ---- Helpers shared by the phases.
 

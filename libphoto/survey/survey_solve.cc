@@ -165,6 +165,7 @@ void AdjustBlock(SurveyState* s) {
   HoldStatedSigmas(s);
   s->bundle.compute_intrinsics_covariance = true;
   s->bundle.compute_precision = s->Options().posterior_precision;
+  WithholdControl(s);
   s->before_final = *s->model;
   report.bundle = AdjustBundle(s->model, s->bundle);
   report.refined = report.bundle.refined_intrinsics;
