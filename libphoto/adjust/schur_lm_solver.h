@@ -40,7 +40,7 @@ namespace aerotri {
 
 // The reduced system's size above which SolveSchurLm declines (a dense
 // n x n system per thread, and its Cholesky).
-constexpr int kMaxSchurLmReducedSize = 2500;
+constexpr int kMaxSchurLmReducedSize = 4000;
 
 // Solves `problem` in place (its parameter blocks' values), `points`
 // eliminated, when the solver takes it: every residual holds at most one of
