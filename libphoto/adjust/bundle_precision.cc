@@ -35,23 +35,21 @@ RowView View(const ceres::CRSMatrix& crs) {
 // `cols`, which the function fills in ascending order).
 void SplitRows(const RowView& j, const std::vector<int>& rows, int c0, int first, Eigen::MatrixXd* a,
                std::vector<int>* cols, Eigen::MatrixXd* b) {
-  std::map<int, int> index;
+  cols->clear();
   for (int r : rows) {
     for (RowView::InnerIterator it(j, r); it; ++it) {
-      if (it.col() >= first) index.emplace(it.col() - first, 0);
+      if (it.col() >= first) cols->push_back(it.col() - first);
     }
   }
-  cols->clear();
-  for (auto& [c, k] : index) {
-    k = static_cast<int>(cols->size());
-    cols->push_back(c);
-  }
+  std::sort(cols->begin(), cols->end());
+  cols->erase(std::unique(cols->begin(), cols->end()), cols->end());
+  auto index = [&](int c) { return std::lower_bound(cols->begin(), cols->end(), c) - cols->begin(); };
   a->setZero(static_cast<Eigen::Index>(rows.size()), 3);
   b->setZero(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(cols->size()));
   for (size_t k = 0; k < rows.size(); ++k) {
     for (RowView::InnerIterator it(j, rows[k]); it; ++it) {
       if (it.col() >= first) {
-        (*b)(k, index[it.col() - first]) = it.value();
+        (*b)(k, index(it.col() - first)) = it.value();
       } else if (it.col() >= c0 && it.col() < c0 + 3) {
         (*a)(k, it.col() - c0) = it.value();
       }
@@ -152,7 +150,7 @@ void AddReducedProduct(const RowView& j, int n3, Eigen::MatrixXd* s_out) {
 // Each point eliminated: V_p and W_p from the rows of J that hold it,
 // V_p⁻¹ (a pseudo-inverse where its rays are nearly parallel) and
 // T_p = V_p⁻¹ W_p kept, S -= W_pᵀ T_p.
-std::vector<PointCoupling> EliminatePoints(const RowView& j, int np, int n3, Eigen::MatrixXd* s_out,
+std::vector<PointCoupling> EliminatePoints(const RowView& j, int np, int n3, int threads, Eigen::MatrixXd* s_out,
                                            int* undetermined_points) {
   Eigen::MatrixXd& s = *s_out;
   std::vector<std::vector<int>> rows_of_point(np);
@@ -165,36 +163,48 @@ std::vector<PointCoupling> EliminatePoints(const RowView& j, int np, int n3, Eig
     }
   }
   std::vector<PointCoupling> coupling(np);
-  for (int pt = 0; pt < np; ++pt) {
+  // Points in contiguous shares, each thread its own S to subtract from.
+  const unsigned t = std::max(1u, std::min(ThreadCount(threads), static_cast<unsigned>(std::max(np, 1))));
+  std::vector<Eigen::MatrixXd> s_t(t);
+  std::vector<int> undetermined(t, 0);
+  ParallelFor(t, t, [&](std::size_t th) {
+    Eigen::MatrixXd& st = th == 0 ? s : s_t[th];
+    if (th > 0) st.setZero(s.rows(), s.cols());
     Eigen::MatrixXd a, b;
-    PointCoupling& c = coupling[pt];
-    SplitRows(j, rows_of_point[pt], 3 * pt, n3, &a, &c.cols, &b);
-    const Eigen::Matrix3d vp = a.transpose() * a;
-    Eigen::FullPivLU<Eigen::Matrix3d> lu(vp);
-    if (lu.rank() < 3) {
-      // Rays (nearly) parallel: the point slides along them. Its
-      // undetermined direction is one the residuals do not see (to first
-      // order), so the pseudo-inverse gives the cameras' marginal exactly
-      // (W's columns lie in V's range); the point itself has no finite
-      // covariance and is left out of the points' (point_undetermined).
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(vp);
-      const Eigen::Vector3d values = eigen.eigenvalues();
-      const double floor = 1e-10 * std::max(values.maxCoeff(), 0.0);
-      Eigen::Vector3d inv = Eigen::Vector3d::Zero();
-      for (int k = 0; k < 3; ++k) inv(k) = values(k) > floor ? 1.0 / values(k) : 0.0;
-      c.v_inv = eigen.eigenvectors() * inv.asDiagonal() * eigen.eigenvectors().transpose();
-      c.undetermined = true;
-      ++*undetermined_points;
-    } else {
-      c.v_inv = lu.inverse();
+    const int begin = static_cast<int>(static_cast<long>(np) * th / t);
+    const int end = static_cast<int>(static_cast<long>(np) * (th + 1) / t);
+    for (int pt = begin; pt < end; ++pt) {
+      PointCoupling& c = coupling[pt];
+      SplitRows(j, rows_of_point[pt], 3 * pt, n3, &a, &c.cols, &b);
+      const Eigen::Matrix3d vp = a.transpose() * a;
+      Eigen::FullPivLU<Eigen::Matrix3d> lu(vp);
+      if (lu.rank() < 3) {
+        // Rays (nearly) parallel: the point slides along them. Its
+        // undetermined direction is one the residuals do not see (to first
+        // order), so the pseudo-inverse gives the cameras' marginal exactly
+        // (W's columns lie in V's range); the point itself has no finite
+        // covariance and is left out of the points' (point_undetermined).
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(vp);
+        const Eigen::Vector3d values = eigen.eigenvalues();
+        const double floor = 1e-10 * std::max(values.maxCoeff(), 0.0);
+        Eigen::Vector3d inv = Eigen::Vector3d::Zero();
+        for (int k = 0; k < 3; ++k) inv(k) = values(k) > floor ? 1.0 / values(k) : 0.0;
+        c.v_inv = eigen.eigenvectors() * inv.asDiagonal() * eigen.eigenvectors().transpose();
+        c.undetermined = true;
+        ++undetermined[th];
+      } else {
+        c.v_inv = lu.inverse();
+      }
+      const Eigen::MatrixXd wp = a.transpose() * b;
+      c.t = c.v_inv * wp;
+      const Eigen::MatrixXd update = wp.transpose().lazyProduct(c.t);
+      for (size_t x = 0; x < c.cols.size(); ++x) {
+        for (size_t y = 0; y < c.cols.size(); ++y) st(c.cols[x], c.cols[y]) -= update(x, y);
+      }
     }
-    const Eigen::MatrixXd wp = a.transpose() * b;
-    c.t = c.v_inv * wp;
-    const Eigen::MatrixXd update = wp.transpose() * c.t;
-    for (size_t x = 0; x < c.cols.size(); ++x) {
-      for (size_t y = 0; y < c.cols.size(); ++y) s(c.cols[x], c.cols[y]) -= update(x, y);
-    }
-  }
+  });
+  for (unsigned th = 1; th < t; ++th) s += s_t[th];
+  for (int u : undetermined) *undetermined_points += u;
   return coupling;
 }
 
@@ -210,46 +220,59 @@ void GroupRedundancies(const PrecisionProblem& p, const RowView& j, int n3, cons
     first_row.emplace(id, row);
     row += problem.GetCostFunctionForResidualBlock(id)->num_residuals();
   }
+  const unsigned threads = ThreadCount(p.num_threads);
   for (const PrecisionProblem::Group& group : p.groups) {
-    GroupRedundancy g;
-    for (const auto& [id, mask] : group.rows) {
-      const auto it = first_row.find(id);
-      if (it == first_row.end()) continue;
-      const int r0 = it->second;
-      const int nr = problem.GetCostFunctionForResidualBlock(id)->num_residuals();
-      // The point the rows hold, if any (a residual holds at most one).
-      int pt = -1;
-      for (int r = r0; r < r0 + nr && pt < 0; ++r) {
-        for (RowView::InnerIterator c(j, r); c; ++c) {
-          if (c.col() < n3) {
-            pt = c.col() / 3;
-            break;
-          }
-        }
-      }
+    // The group's rows in contiguous shares, one partial sum per thread.
+    std::vector<GroupRedundancy> part(threads);
+    const std::size_t n = group.rows.size();
+    ParallelFor(threads, threads, [&](std::size_t th) {
+      GroupRedundancy& g = part[th];
       Eigen::MatrixXd a, b;
       std::vector<int> cols;
-      SplitRows(j, r0, r0 + nr, pt >= 0 ? 3 * pt : -3, n3, &a, &cols, &b);
-      // J_i Σ J_iᵀ = a Σ_pp aᵀ + 2 sym(a Σ_pU bᵀ) + b Σ_UU bᵀ, Σ_pU = −T_p Σ_U.
-      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(nr, nr);
-      if (!cols.empty()) {
-        const Eigen::MatrixXd s_uu = Gather(out.reduced_cov, cols, cols);
-        h += b * s_uu * b.transpose();
-      }
-      if (pt >= 0) {
-        const PointCoupling& c = coupling[pt];
-        h += a * out.point_cov[pt] * a.transpose();
-        if (!cols.empty() && !c.cols.empty()) {
-          const Eigen::MatrixXd cross = a * c.t * Gather(out.reduced_cov, c.cols, cols) * b.transpose();
-          h -= cross + cross.transpose();
+      for (std::size_t k = n * th / threads; k < n * (th + 1) / threads; ++k) {
+        const auto& [id, mask] = group.rows[k];
+        const auto it = first_row.find(id);
+        if (it == first_row.end()) continue;
+        const int r0 = it->second;
+        const int nr = problem.GetCostFunctionForResidualBlock(id)->num_residuals();
+        // The point the rows hold, if any (a residual holds at most one).
+        int pt = -1;
+        for (int r = r0; r < r0 + nr && pt < 0; ++r) {
+          for (RowView::InnerIterator c(j, r); c; ++c) {
+            if (c.col() < n3) {
+              pt = c.col() / 3;
+              break;
+            }
+          }
+        }
+        SplitRows(j, r0, r0 + nr, pt >= 0 ? 3 * pt : -3, n3, &a, &cols, &b);
+        // J_i Σ J_iᵀ = a Σ_pp aᵀ + 2 sym(a Σ_pU bᵀ) + b Σ_UU bᵀ, Σ_pU = −T_p Σ_U.
+        Eigen::MatrixXd h = Eigen::MatrixXd::Zero(nr, nr);
+        if (!cols.empty()) {
+          const Eigen::MatrixXd s_uu = Gather(out.reduced_cov, cols, cols);
+          h += b * s_uu * b.transpose();
+        }
+        if (pt >= 0) {
+          const PointCoupling& c = coupling[pt];
+          h += a * out.point_cov[pt] * a.transpose();
+          if (!cols.empty() && !c.cols.empty()) {
+            const Eigen::MatrixXd cross = (a * c.t) * Gather(out.reduced_cov, c.cols, cols) * b.transpose();
+            h -= cross + cross.transpose();
+          }
+        }
+        for (int q = 0; q < nr; ++q) {
+          if (!(mask & (1u << q))) continue;
+          ++g.rows;
+          g.sum_squares += adjusted_residuals[r0 + q] * adjusted_residuals[r0 + q];
+          g.leverage += h(q, q);
         }
       }
-      for (int k = 0; k < nr; ++k) {
-        if (!(mask & (1u << k))) continue;
-        ++g.rows;
-        g.sum_squares += adjusted_residuals[r0 + k] * adjusted_residuals[r0 + k];
-        g.leverage += h(k, k);
-      }
+    });
+    GroupRedundancy g;
+    for (const GroupRedundancy& t : part) {
+      g.rows += t.rows;
+      g.sum_squares += t.sum_squares;
+      g.leverage += t.leverage;
     }
     out.groups.push_back(g);
   }
@@ -483,7 +506,8 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   // a pass over every point column per column (hours at 100,000 points).
   Eigen::MatrixXd s = Eigen::MatrixXd::Zero(nc, nc);
   AddReducedProduct(j, n3, &s);
-  const std::vector<PointCoupling> coupling = EliminatePoints(j, np, n3, &s, &out.undetermined_points);
+  const std::vector<PointCoupling> coupling =
+      EliminatePoints(j, np, n3, p.num_threads, &s, &out.undetermined_points);
 
   if (nc > 0) {
     out.reduced_cov = std::move(s);
@@ -498,12 +522,13 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   }
 
   out.point_cov.resize(np);
-  for (int pt = 0; pt < np; ++pt) {
+  out.point_undetermined.resize(np);
+  ParallelFor(static_cast<std::size_t>(np), ThreadCount(p.num_threads), [&](std::size_t pt) {
     const PointCoupling& c = coupling[pt];
-    out.point_undetermined.push_back(c.undetermined ? 1 : 0);
+    out.point_undetermined[pt] = c.undetermined ? 1 : 0;
     out.point_cov[pt] = c.v_inv;
     if (!c.cols.empty()) out.point_cov[pt] += c.t * Gather(out.reduced_cov, c.cols, c.cols) * c.t.transpose();
-  }
+  });
 
   if (!p.groups.empty()) GroupRedundancies(p, j, n3, coupling, adjusted_residuals, &out);
   if (!p.withheld.empty()) WithholdPoints(p, j, n3, adjusted_residuals, &out);
