@@ -66,6 +66,19 @@ double MaxPointDifference(const SparseModel& a, const SparseModel& b) {
   return d;
 }
 
+// The same start solved by `options`' engine and by Ceres.
+struct Both {
+  SparseModel ours, ceres;
+  BundleSummary a, b;
+};
+Both SolveBoth(const SparseModel& start, BundleOptions options) {
+  Both r{start, start, {}, {}};
+  r.a = AdjustBundle(&r.ours, options);
+  options.engine = BundleEngine::kCeres;
+  r.b = AdjustBundle(&r.ceres, options);
+  return r;
+}
+
 // Screening (Huber), least squares, variance components and the precision
 // pass, as the survey adjustment runs them: the same optimum to well under
 // a micrometre and the same statistics.
@@ -78,10 +91,9 @@ TEST(SchurLmSolver, ReachesCeresOptimumOnASurveyWithPriors) {
   o.outlier_threshold_px = 4.0;
   o.estimate_variance_components = true;
   o.compute_precision = true;
-  SparseModel ours = start, ceres = start;
-  const BundleSummary a = AdjustBundle(&ours, o);
-  o.engine = BundleEngine::kCeres;
-  const BundleSummary b = AdjustBundle(&ceres, o);
+  const Both r = SolveBoth(start, o);
+  const SparseModel &ours = r.ours, &ceres = r.ceres;
+  const BundleSummary &a = r.a, &b = r.b;
   SCOPED_TRACE(a.BriefReport() + "\n" + b.BriefReport());
   EXPECT_EQ(a.linear_solver, "aerotri_schur_lm");
   EXPECT_EQ(b.linear_solver, "dense_schur");
@@ -135,10 +147,9 @@ TEST(SchurLmSolver, RobustLossCorrectedAsCeresCorrectsIt) {
   BundleOptions o = Tight(BundleEngine::kAerotri);
   o.loss = LossType::kHuber;
   o.outlier_threshold_px = 0.0;
-  SparseModel ours = start, ceres = start;
-  const BundleSummary a = AdjustBundle(&ours, o);
-  o.engine = BundleEngine::kCeres;
-  const BundleSummary b = AdjustBundle(&ceres, o);
+  const Both r = SolveBoth(start, o);
+  const SparseModel &ours = r.ours, &ceres = r.ceres;
+  const BundleSummary &a = r.a, &b = r.b;
   SCOPED_TRACE(a.BriefReport() + "\n" + b.BriefReport());
   EXPECT_EQ(a.linear_solver, "aerotri_schur_lm");
   EXPECT_NEAR(a.final_cost, b.final_cost, 1e-9 * b.final_cost);

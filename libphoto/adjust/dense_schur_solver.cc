@@ -35,6 +35,16 @@ bool BundleStopRule::Accepted(double cost) {
   return gap_ > 0.0 && estimate_ <= gap_;
 }
 
+void LmTrustRegion::Accept(double rho) {
+  radius_ = std::min(max_radius_, radius_ / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
+  decrease_factor_ = 2.0;
+}
+
+void LmTrustRegion::Reject() {
+  radius_ /= decrease_factor_;
+  decrease_factor_ *= 2.0;
+}
+
 std::string DenseSchurSummary::Report() const {
   std::ostringstream out;
   out << "aerotri dense-Schur Levenberg-Marquardt: " << num_residuals << " residuals, " << num_parameters
@@ -133,8 +143,7 @@ class Solver {
     BundleStopRule stop(options_.optimality_gap);
     stop.Accepted(cost);
 
-    double radius = 1e4;
-    double decrease_factor = 2.0;
+    LmTrustRegion region(1e4, kMaxRadius);
     bool relinearize = true;
     std::vector<double> trial_cams(cams_.size()), trial_pts(pts_.size());
     s.termination = "NO_CONVERGENCE";
@@ -158,11 +167,11 @@ class Solver {
       }
       ++s.iterations;
       t = Clock::now();
-      EliminatePoints(1.0 / radius);
+      EliminatePoints(region.Damping());
       s.eliminate_s += Since(t);
       t = Clock::now();
       double predicted = 0.0, step_norm = 0.0;
-      const bool solved = SolveCameras(1.0 / radius, &predicted, &step_norm);
+      const bool solved = SolveCameras(region.Damping(), &predicted, &step_norm);
       s.factor_s += Since(t);
       double trial_cost = std::numeric_limits<double>::infinity();
       bool evaluated = false;
@@ -191,8 +200,7 @@ class Solver {
         const double old_cost = cost;
         cost = trial_cost;
         ++s.accepted;
-        radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
-        decrease_factor = 2.0;
+        region.Accept(rho);
         relinearize = true;
         if (options_.iteration_callback) options_.iteration_callback(s.iterations, cost, Since(start));
         if (stop.Accepted(cost)) {
@@ -209,9 +217,8 @@ class Solver {
           break;
         }
       } else {
-        radius /= decrease_factor;
-        decrease_factor *= 2.0;
-        if (radius < kMinRadius) {
+        region.Reject();
+        if (region.Radius() < kMinRadius) {
           s.termination = "CONVERGENCE";
           s.message = "trust region radius below its minimum: no step decreases the cost";
           s.converged = true;

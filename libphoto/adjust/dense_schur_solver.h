@@ -64,6 +64,24 @@ class BundleStopRule {
   double estimate_ = 1e300;
 };
 
+// Levenberg–Marquardt's trust region as Ceres runs it (shared by aerotri's
+// engines): the damping is 1/μ; a step of gain ratio ρ grows μ by
+// 1/max(1/3, 1 − (2ρ − 1)³), up to max_radius; a rejected step divides it
+// by a factor that doubles with each rejection in a row.
+class LmTrustRegion {
+ public:
+  LmTrustRegion(double radius, double max_radius) : radius_(radius), max_radius_(max_radius) {}
+  double Radius() const { return radius_; }
+  double Damping() const { return 1.0 / radius_; }
+  void Accept(double rho);
+  void Reject();
+
+ private:
+  double radius_;
+  double max_radius_;
+  double decrease_factor_ = 2.0;
+};
+
 struct DenseSchurProblem {
   CameraModelId model = CameraModelId::kSnavely;
   // Per camera a block [q (w, x, y, z), C (3), intrinsics (N)], changed in

@@ -14,6 +14,7 @@
 #include <limits>
 #include <unordered_map>
 
+#include "libphoto/adjust/dense_schur_solver.h"
 #include "libphoto/base/parallel.h"
 
 namespace aerotri {
@@ -227,8 +228,7 @@ class Solver {
     out.iterations.push_back(it0);
     if (Callbacks(it0, &out)) return Finish(start, cost, &out);
 
-    double radius = options_.initial_trust_region_radius;
-    double decrease_factor = 2.0;
+    LmTrustRegion region(options_.initial_trust_region_radius, options_.max_trust_region_radius);
     bool relinearize = true;
     out.termination_type = ceres::NO_CONVERGENCE;
     out.message = "Maximum number of iterations reached. Number of iterations: " +
@@ -253,11 +253,11 @@ class Solver {
       ++iteration;
       ceres::IterationSummary it;
       it.iteration = iteration;
-      it.trust_region_radius = radius;
+      it.trust_region_radius = region.Radius();
       double predicted = 0.0, step_norm = 0.0, trial = std::numeric_limits<double>::infinity();
       auto t = Clock::now();
-      Eliminate(1.0 / radius);
-      const bool solved = SolveReduced(1.0 / radius, &predicted, &step_norm);
+      Eliminate(region.Damping());
+      const bool solved = SolveReduced(region.Damping(), &predicted, &step_norm);
       out.linear_solver_time_in_seconds += Since(t);
       bool evaluated = false;
       if (solved) {
@@ -278,9 +278,7 @@ class Solver {
       if (rho > options_.min_relative_decrease) {
         const double old_cost = cost;
         cost = trial;
-        radius = std::min(options_.max_trust_region_radius,
-                          radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
-        decrease_factor = 2.0;
+        region.Accept(rho);
         relinearize = true;
         it.step_is_successful = true;
         it.cost = cost + fixed_cost_;
@@ -296,15 +294,15 @@ class Solver {
         }
       } else {
         if (solved) Restore();
-        radius /= decrease_factor;
-        decrease_factor *= 2.0;
+        region.Reject();
         it.cost = cost + fixed_cost_;
         it.cumulative_time_in_seconds = Since(start);
         out.iterations.push_back(it);
         if (Callbacks(it, &out)) return Finish(start, cost, &out);
-        if (radius < options_.min_trust_region_radius) {
+        if (region.Radius() < options_.min_trust_region_radius) {
           out.termination_type = ceres::CONVERGENCE;
-          out.message = "Minimum trust region radius reached. Trust region radius: " + std::to_string(radius);
+          out.message =
+              "Minimum trust region radius reached. Trust region radius: " + std::to_string(region.Radius());
           break;
         }
       }
@@ -439,7 +437,9 @@ class Solver {
         if (t.kind[b] < 0) continue;
         const FBlock& fb = s_.blocks[t.kind[b]];
         // The lower triangle (and whole diagonal blocks).
-        if (fa.col >= fb.col) u->block(fa.col, fb.col, fa.tangent, fb.tangent) += jtj.block(at, bt, fa.tangent, fb.tangent);
+        if (fa.col >= fb.col) {
+          u->block(fa.col, fb.col, fa.tangent, fb.tangent) += jtj.block(at, bt, fa.tangent, fb.tangent);
+        }
         bt += fb.tangent;
       }
       at += fa.tangent;
