@@ -1133,19 +1133,16 @@ bool SolveWithDenseSchur(SparseModel* model, const BundleOptions& options, const
   return true;
 }
 
-// One solve (or, with precision_pass, the posterior precision of the
-// current state): configure, build, solve, write back. gps_offsets (one
-// shared, or one per flight) and gps_drift (per flight) are the GPS offsets
-// and drift rates, in and out.
 // The solve: aerotri's Schur Levenberg–Marquardt where it takes the problem
 // (BundleOptions::engine auto or aerotri, the linear solver auto or dense
 // Schur), else Ceres.
 void SolveProblem(const BundleOptions& options, const ceres::Solver::Options& solver_options,
                   const std::vector<double*>& points, ceres::Problem* problem, RoundResult* result) {
-  std::string why_not = "Ceres was asked for";
-  const bool ours = options.engine != BundleEngine::kCeres &&
-                    (options.linear_solver == LinearSolverChoice::kAuto ||
-                     options.linear_solver == LinearSolverChoice::kDenseSchur);
+  std::string why_not;
+  const bool dense = options.linear_solver == LinearSolverChoice::kAuto ||
+                     options.linear_solver == LinearSolverChoice::kDenseSchur;
+  if (!dense) why_not = "the linear solver " + ToString(options.linear_solver) + " was asked for";
+  const bool ours = options.engine != BundleEngine::kCeres && dense;
   if (ours && SolveSchurLm(solver_options, problem, points, &result->ceres, &why_not)) {
     result->solver = "aerotri_schur_lm";
     return;
@@ -1156,6 +1153,11 @@ void SolveProblem(const BundleOptions& options, const ceres::Solver::Options& so
   ceres::Solve(solver_options, problem, &result->ceres);
 }
 
+// One solve (or, with precision_pass, the posterior precision of the
+// current state; with covariance_pass, the intrinsics' covariance of it):
+// configure, build, solve, write back. gps_offsets (one shared, or one per
+// flight) and gps_drift (per flight) are the GPS offsets and drift rates,
+// in and out.
 RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
                       std::vector<Eigen::Vector3d>* gps_offsets, std::vector<Eigen::Vector3d>* gps_drift,
                       bool precision_pass = false, bool covariance_pass = false) {

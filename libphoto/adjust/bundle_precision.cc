@@ -163,8 +163,11 @@ std::vector<PointCoupling> EliminatePoints(const RowView& j, int np, int n3, int
     }
   }
   std::vector<PointCoupling> coupling(np);
-  // Points in contiguous shares, each thread its own S to subtract from.
-  const unsigned t = std::max(1u, std::min(ThreadCount(threads), static_cast<unsigned>(std::max(np, 1))));
+  // Points in contiguous shares, each thread its own S to subtract from;
+  // one thread where a copy of S would be large (288 MB at 6,000 reduced
+  // columns, 1,000 photos: the run's peak).
+  const bool small = s.rows() <= 4000;
+  const unsigned t = small ? std::max(1u, std::min(ThreadCount(threads), static_cast<unsigned>(std::max(np, 1)))) : 1u;
   std::vector<Eigen::MatrixXd> s_t(t);
   std::vector<int> undetermined(t, 0);
   ParallelFor(t, t, [&](std::size_t th) {
