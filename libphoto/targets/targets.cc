@@ -152,6 +152,11 @@ std::vector<TargetDetection> DetectCheckerTargets(const cv::Mat& gray8, const Ta
   cv::GaussianBlur(f, light, cv::Size(0, 0), 0.7);
   std::vector<TargetDetection> found;
   const auto refine = [&](const Eigen::Vector2d& from, int half) {
+    // cv::cornerSubPix needs the image 2 half + 5 wide and high: a crop cut
+    // narrow by a photo's edge takes a smaller window, or none (NaN: the
+    // callers keep their centre, or drop the candidate).
+    half = std::min({half, (light.cols - 5) / 2, (light.rows - 5) / 2});
+    if (half < 2) return Eigen::Vector2d(std::nan(""), std::nan(""));
     std::vector<cv::Point2f> corner = {cv::Point2f(static_cast<float>(from.x()), static_cast<float>(from.y()))};
     cv::cornerSubPix(light, corner, cv::Size(half, half), cv::Size(-1, -1),
                      cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
