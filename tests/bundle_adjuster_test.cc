@@ -410,6 +410,40 @@ TEST(BundleAdjuster, APointAlongOneRayLeavesTheCamerasPrecisionAsItWas) {
   EXPECT_GT(without.precision.images[0].centre_cov(0, 0), 0.0);
 }
 
+// The intrinsics' covariance: taken from the posterior precision pass where
+// it runs, computed by a pass of its own where it does not. Both are
+// (JᵀJ)⁻¹ at the same optimum and weights: the same sigmas and
+// correlations; and the focal length's sigma is what 0.5 px over a block
+// this size allows, not zero and not metres.
+TEST(BundleAdjuster, IntrinsicsCovarianceFromThePrecisionPassEqualsItsOwnPass) {
+  const SyntheticSurveyOptions o = SmallSurvey(23);
+  const SyntheticSurvey survey = MakeSyntheticSurvey(o);
+  SparseModel model = survey.observed;
+  std::mt19937 rng(23);
+  testing::AddGpsPriors(&model, survey.truth, rng, 0.05, 0.1);
+  BundleOptions options;
+  options.compute_intrinsics_covariance = true;
+  AdjustBundle(&model, options);  // to the optimum, then both from there
+  SparseModel a = model, b = model;
+  options.compute_precision = true;
+  const BundleSummary with_pass = AdjustBundle(&a, options);
+  options.compute_precision = false;
+  const BundleSummary own_pass = AdjustBundle(&b, options);
+  ASSERT_TRUE(with_pass.precision.computed) << with_pass.precision.note;
+  ASSERT_EQ(with_pass.intrinsics_precision.size(), 1u) << with_pass.covariance_note;
+  ASSERT_EQ(own_pass.intrinsics_precision.size(), 1u) << own_pass.covariance_note;
+  const IntrinsicsPrecision &p = with_pass.intrinsics_precision[0], &q = own_pass.intrinsics_precision[0];
+  ASSERT_EQ(p.names, q.names);
+  for (size_t k = 0; k < p.sigmas.size(); ++k) {
+    EXPECT_NEAR(p.sigmas[k], q.sigmas[k], 1e-7 * q.sigmas[k]) << p.names[k];
+    for (size_t l = 0; l < p.sigmas.size(); ++l) EXPECT_NEAR(p.correlation[k][l], q.correlation[k][l], 1e-7);
+  }
+  EXPECT_NEAR(p.focal_height_correlation_max, q.focal_height_correlation_max, 1e-7);
+  ASSERT_EQ(p.names[0], "f");
+  EXPECT_GT(p.sigmas[0], 0.01);
+  EXPECT_LT(p.sigmas[0], 10.0);
+}
+
 TEST(BundleOptions, ValidateNamesTheOption) {
   BundleOptions options;
   std::string error;

@@ -9,11 +9,13 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <memory>
 #include <set>
 #include <sstream>
 #include <thread>
+#include <unordered_map>
 
 #include "libphoto/adjust/bundle_config.h"
 #include "libphoto/adjust/bundle_precision.h"
@@ -128,63 +130,37 @@ struct RoundResult {
   std::vector<std::vector<int>> refined_params;  // per camera group, as configured (BundleConfig::refined)
 };
 
-// The a-priori covariance of every refined intrinsics block and its
-// correlation with the camera heights (BundleOptions::
-// compute_intrinsics_covariance).
-void IntrinsicsCovariance(ceres::Problem* problem, SparseModel* model, const std::vector<char>& image_used,
-                          const std::vector<std::vector<int>>& refined, const BundleOptions& options,
-                          RoundResult* result) {
+// Whether the intrinsics' covariance is computed for this problem; false
+// with the reason in result->covariance_note where it is not.
+bool IntrinsicsCovarianceApplies(ceres::Problem* problem, const SparseModel& model,
+                                 const std::vector<std::vector<int>>& refined, const BundleOptions& options,
+                                 RoundResult* result) {
   if (problem->NumResiduals() > options.max_covariance_residuals) {
     result->covariance_note = "not computed: " + std::to_string(problem->NumResiduals()) +
                               " residuals, above the limit of " + std::to_string(options.max_covariance_residuals);
-    return;
+    return false;
   }
-  // Through the reduced camera system (bundle_precision.h): the points'
-  // 3x3 blocks eliminated, the dense inverse over cameras, intrinsics and
-  // offsets. Ceres' Covariance (a sparse QR of the whole Jacobian, points
-  // included) took 954 s and 3.2 GB on a 131-photo block.
-  auto varying = [&](const double* block) {
-    return problem->HasParameterBlock(block) && !problem->IsParameterBlockConstant(block);
-  };
   bool any_refined = false;
-  for (size_t c = 0; c < model->cameras.size(); ++c) {
-    any_refined = any_refined || (!refined[c].empty() && varying(model->cameras[c].params.data()));
+  for (size_t c = 0; c < model.cameras.size(); ++c) {
+    const double* params = model.cameras[c].params.data();
+    any_refined = any_refined || (!refined[c].empty() && problem->HasParameterBlock(params) &&
+                                  !problem->IsParameterBlockConstant(params));
   }
-  if (!any_refined) {
-    result->covariance_note = "no refined intrinsics in blocks of their own";
-    return;
-  }
-  internal::PrecisionProblem pp;
-  pp.problem = problem;
-  pp.num_threads = options.num_threads > 0 ? options.num_threads
-                                           : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  problem->GetResidualBlocks(&pp.adjusted);
-  std::set<const double*> point_blocks;
-  for (Point& point : model->points) {
-    double* position = point.position.data();
-    if (varying(position)) {
-      pp.points.push_back(position);
-      point_blocks.insert(position);
-    }
-  }
-  std::vector<double*> all;
-  problem->GetParameterBlocks(&all);
-  std::map<const double*, int> slot;
-  for (double* block : all) {
-    if (point_blocks.count(block) || !varying(block)) continue;
-    slot[block] = static_cast<int>(pp.reduced.size());
-    pp.reduced.push_back(block);
-  }
-  const internal::PrecisionSolution solution = internal::SolvePrecision(pp);
-  if (!solution.ok) {
-    result->covariance_note = "not computed: the normal equations are rank deficient (datum or intrinsics "
-                              "not determined)" + (solution.note.empty() ? "" : ": " + solution.note);
-    return;
-  }
-  // The covariance of two reduced blocks (tangent coordinates), row-major.
-  auto block_cov = [&](const double* a, const double* b, std::vector<double>* out) {
-    const auto ia = slot.find(a), ib = slot.find(b);
-    if (ia == slot.end() || ib == slot.end()) return false;
+  if (!any_refined) result->covariance_note = "no refined intrinsics in blocks of their own";
+  return any_refined;
+}
+
+// The covariance of two reduced blocks of a precision solution (tangent
+// coordinates, row-major); false where either is not a reduced block.
+using BlockCovariance = std::function<bool(const double*, const double*, std::vector<double>*)>;
+
+BlockCovariance BlockCovarianceOf(ceres::Problem* problem, const std::vector<double*>& reduced,
+                                  const internal::PrecisionSolution& solution) {
+  auto slot = std::make_shared<std::unordered_map<const double*, int>>();
+  for (size_t k = 0; k < reduced.size(); ++k) slot->emplace(reduced[k], static_cast<int>(k));
+  return [problem, slot, &solution](const double* a, const double* b, std::vector<double>* out) {
+    const auto ia = slot->find(a), ib = slot->find(b);
+    if (ia == slot->end() || ib == slot->end()) return false;
     const int oa = solution.reduced_offset[ia->second], ob = solution.reduced_offset[ib->second];
     const int na = problem->ParameterBlockTangentSize(const_cast<double*>(a));
     const int nb = problem->ParameterBlockTangentSize(const_cast<double*>(b));
@@ -194,6 +170,13 @@ void IntrinsicsCovariance(ceres::Problem* problem, SparseModel* model, const std
     }
     return true;
   };
+}
+
+// Each refined intrinsics block's sigmas and correlations, and its focal
+// length's correlation with the camera heights, from the covariance.
+void IntrinsicsPrecisionOf(ceres::Problem* problem, const SparseModel* model, const std::vector<char>& image_used,
+                           const std::vector<std::vector<int>>& refined, const BlockCovariance& block_cov,
+                           RoundResult* result) {
   for (size_t c = 0; c < model->cameras.size(); ++c) {
     const Camera& camera = model->cameras[c];
     const double* params = camera.params.data();
@@ -241,6 +224,49 @@ void IntrinsicsCovariance(ceres::Problem* problem, SparseModel* model, const std
     }
     result->precision.push_back(p);
   }
+}
+
+// The a-priori covariance of every refined intrinsics block and its
+// correlation with the camera heights (BundleOptions::
+// compute_intrinsics_covariance), in a pass of its own: where the posterior
+// precision pass runs, it computes them from its own solution instead.
+void IntrinsicsCovariance(ceres::Problem* problem, SparseModel* model, const std::vector<char>& image_used,
+                          const std::vector<std::vector<int>>& refined, const BundleOptions& options,
+                          RoundResult* result) {
+  if (!IntrinsicsCovarianceApplies(problem, *model, refined, options, result)) return;
+  // Through the reduced camera system (bundle_precision.h): the points'
+  // 3x3 blocks eliminated, the dense inverse over cameras, intrinsics and
+  // offsets. Ceres' Covariance (a sparse QR of the whole Jacobian, points
+  // included) took 954 s and 3.2 GB on a 131-photo block.
+  auto varying = [&](const double* block) {
+    return problem->HasParameterBlock(block) && !problem->IsParameterBlockConstant(block);
+  };
+  internal::PrecisionProblem pp;
+  pp.problem = problem;
+  pp.num_threads = options.num_threads > 0 ? options.num_threads
+                                           : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  problem->GetResidualBlocks(&pp.adjusted);
+  std::set<const double*> point_blocks;
+  for (Point& point : model->points) {
+    double* position = point.position.data();
+    if (varying(position)) {
+      pp.points.push_back(position);
+      point_blocks.insert(position);
+    }
+  }
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  for (double* block : all) {
+    if (point_blocks.count(block) || !varying(block)) continue;
+    pp.reduced.push_back(block);
+  }
+  const internal::PrecisionSolution solution = internal::SolvePrecision(pp);
+  if (!solution.ok) {
+    result->covariance_note = "not computed: the normal equations are rank deficient (datum or intrinsics "
+                              "not determined)" + (solution.note.empty() ? "" : ": " + solution.note);
+    return;
+  }
+  IntrinsicsPrecisionOf(problem, model, image_used, refined, BlockCovarianceOf(problem, pp.reduced, solution), result);
 }
 
 // The gauge of a model without enough priors (BundleGauge other than
@@ -451,7 +477,7 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
                                    const BundleOptions& options, std::vector<Eigen::Vector3d>* gps_offsets,
                                    std::vector<Eigen::Vector3d>* gps_drift,
                                    const std::array<internal::PrecisionProblem::Group, kNumObservationGroups>& groups,
-                                   std::array<internal::GroupRedundancy, kNumObservationGroups>* group_out) {
+                                   const std::vector<std::vector<int>>* intrinsics_refined, RoundResult* result) {
   const auto start = Clock::now();
   BundlePrecision out;
   internal::PrecisionProblem pp;
@@ -504,6 +530,10 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     mark_sigma_of.push_back(obs.sigma_px > 0.0 ? obs.sigma_px * mark_scale : mark_sigma);
   }
 
+  // The intrinsics' covariance from this pass's own solution, checked
+  // before the check points join the problem.
+  const bool intrinsics = intrinsics_refined != nullptr &&
+                          IntrinsicsCovarianceApplies(problem, *model, *intrinsics_refined, options, result);
   // Independent check points: triangulated from the adjusted cameras.
   const std::vector<int> check_points =
       options.check_points_in_bundle
@@ -567,7 +597,13 @@ BundlePrecision PosteriorPrecision(ceres::Problem* problem, SparseModel* model, 
     out.withheld.push_back(WithheldOf(problem, pp, solution, solution.withheld[k], *model, withheld_points[k],
                                       rotation_slot, centre_slot, camera_slot));
   }
-  for (size_t g = 0; g < solution.groups.size() && g < group_out->size(); ++g) (*group_out)[g] = solution.groups[g];
+  for (size_t g = 0; g < solution.groups.size() && g < result->groups.size(); ++g) {
+    result->groups[g] = solution.groups[g];
+  }
+  if (intrinsics) {
+    IntrinsicsPrecisionOf(problem, model, image_used, *intrinsics_refined,
+                          BlockCovarianceOf(problem, pp.reduced, solution), result);
+  }
   out.computed = true;
   out.time_s = SecondsSince(start);
   return out;
@@ -1214,7 +1250,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
       result.posterior = PosteriorPrecision(
           &problem, model, config.image_used, config.point_used, blocks.rotations, &blocks.readout, bundle.mark_blocks(),
           [&](double sigma) { return bundle.LossFor(sigma); }, bundle.mark_sigma(), options, gps_offsets, gps_drift,
-          bundle.groups(), &result.groups);
+          bundle.groups(), options.compute_intrinsics_covariance ? &config.refined : nullptr, &result);
     }
   } else if (covariance_pass) {
     if (config.AnyMerged()) {
@@ -1495,6 +1531,11 @@ struct BundleRun {
   std::vector<Eigen::Vector3d> gps_offsets;  // one, or one per flight
   std::vector<Eigen::Vector3d> gps_drift;    // per flight, when estimated
   int solve = 0;                             // the solves so far
+  // The intrinsics' covariance was asked for (BundleOptions::
+  // compute_intrinsics_covariance; the solves skip theirs), and has been
+  // taken from the final precision pass.
+  bool intrinsics_covariance = false;
+  bool intrinsics_covariance_done = false;
 };
 
 // The GNSS parameters' start: one offset, or one per flight (at least one
@@ -1707,7 +1748,11 @@ BundleOptions PrecisionWithVarianceComponents(BundleRun* run, const BundleOption
   RoundResult pass;
   std::array<bool, kNumObservationGroups> estimable{};
   for (int iteration = 0;; ++iteration) {
-    pass = Solve(run, weighted, "", /*precision_pass=*/true);
+    // Each pass computes the intrinsics' covariance too (a few blocks of the
+    // inverse it has): the last one's is the final state's.
+    BundleOptions pass_options = weighted;
+    pass_options.compute_intrinsics_covariance = run->intrinsics_covariance;
+    pass = Solve(run, pass_options, "", /*precision_pass=*/true);
     std::array<double, kNumObservationGroups> next;
     bool settled = true;
     VarianceComponentsOf(*run, pass, weighted, stated, iteration, &estimable, &summary.variance_components, &next,
@@ -1719,6 +1764,11 @@ BundleOptions PrecisionWithVarianceComponents(BundleRun* run, const BundleOption
     weighted.sigma_scale = next;
     Solve(run, weighted, "variance components " + std::to_string(iteration + 1));
     summary.variance_component_iterations = iteration + 1;
+  }
+  if (run->intrinsics_covariance && pass.posterior.computed) {
+    summary.intrinsics_precision = pass.precision;
+    summary.covariance_note = pass.covariance_note;
+    run->intrinsics_covariance_done = true;
   }
   summary.precision = std::move(pass.posterior);
   BundlePrecision& p = summary.precision;
@@ -1737,7 +1787,8 @@ BundleOptions PrecisionWithVarianceComponents(BundleRun* run, const BundleOption
 }
 
 // The intrinsics' covariance at the final state and weights (`last`, the
-// options of the last solve), once: the solves before it skip theirs.
+// options of the last solve), once, where no precision pass gave it: the
+// solves before it skip theirs.
 void FinalIntrinsicsCovariance(BundleRun* run, const BundleOptions& last) {
   const RoundResult r = SolveOnce(run->model, last, run->solve, &run->gps_offsets, &run->gps_drift,
                                   /*precision_pass=*/false, /*covariance_pass=*/true);
@@ -1799,7 +1850,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   // computed once at the end (FinalIntrinsicsCovariance).
   BundleOptions solving = options;
   solving.compute_intrinsics_covariance = false;
-  BundleRun run{model, solving, BundleSummary(), {}, {}, 0};
+  BundleRun run{model, solving, BundleSummary(), {}, {}, 0, options.compute_intrinsics_covariance, false};
   BundleSummary& summary = run.summary;
   if (options.compute_diagnostics) summary.num_behind_camera_initial = CountBehindCamera(*model);
   summary.initial_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
@@ -1813,7 +1864,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   StartGnssParameters(&run);
   const BundleOptions estimate = SolveWithOutlierRounds(&run);
   BundleOptions last = options.compute_precision ? PrecisionWithVarianceComponents(&run, estimate) : estimate;
-  if (options.compute_intrinsics_covariance) {
+  if (options.compute_intrinsics_covariance && !run.intrinsics_covariance_done) {
     last.compute_intrinsics_covariance = true;
     FinalIntrinsicsCovariance(&run, last);
   }
