@@ -12,6 +12,7 @@
 #include <map>
 #include <unordered_map>
 
+#include "libphoto/adjust/jacobian.h"
 #include "libphoto/base/parallel.h"
 
 namespace aerotri {
@@ -495,8 +496,7 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
   eval.num_threads = std::max(1, p.num_threads);
   ceres::CRSMatrix crs_main;  // the adjusted rows' Jacobian (viewed by j)
   std::vector<double> adjusted_residuals;
-  const bool need_residuals = !p.groups.empty() || !p.withheld.empty();
-  if (!problem.Evaluate(eval, nullptr, need_residuals ? &adjusted_residuals : nullptr, nullptr, &crs_main)) {
+  if (!EvaluateJacobian(problem, p.adjusted, blocks, p.num_threads, &adjusted_residuals, &crs_main)) {
     out.note = "the Jacobian could not be evaluated at the solution";
     return out;
   }

@@ -15,6 +15,7 @@
 #include <unordered_map>
 
 #include "libphoto/adjust/dense_schur_solver.h"
+#include "libphoto/adjust/jacobian.h"
 #include "libphoto/base/parallel.h"
 
 namespace aerotri {
@@ -136,34 +137,7 @@ bool ReadStructure(ceres::Problem& problem, const std::vector<double*>& points, 
   return true;
 }
 
-// Ceres' robust-loss correction (Triggs): the residual and Jacobian rows
-// scaled so that the Gauss–Newton model of ½ρ(‖r‖²) is that of ½‖r‖².
-struct Corrector {
-  double cost = 0.0;  // ½ρ(‖r‖²)
-  double residual_scaling = 1.0;
-  double sqrt_rho1 = 1.0;
-  double alpha_sq_norm = 0.0;
-  Corrector(const ceres::LossFunction* loss, const double* r, int rows) {
-    double sq = 0.0;
-    for (int i = 0; i < rows; ++i) sq += r[i] * r[i];
-    if (loss == nullptr) {
-      cost = 0.5 * sq;
-      return;
-    }
-    double rho[3];
-    loss->Evaluate(sq, rho);
-    cost = 0.5 * rho[0];
-    sqrt_rho1 = std::sqrt(rho[1]);
-    if (sq == 0.0 || rho[2] <= 0.0) {
-      residual_scaling = sqrt_rho1;
-      return;
-    }
-    const double alpha = 1.0 - std::sqrt(1.0 + 2.0 * sq * rho[2] / rho[1]);
-    residual_scaling = sqrt_rho1 / (1.0 - alpha);
-    alpha_sq_norm = alpha / sq;
-  }
-  bool Identity() const { return residual_scaling == 1.0 && sqrt_rho1 == 1.0 && alpha_sq_norm == 0.0; }
-};
+using internal::LossCorrector;
 
 class Solver {
  public:
@@ -194,7 +168,9 @@ class Solver {
     std::vector<double> r;
     for (const Term& t : s_.fixed) {
       r.resize(t.rows);
-      if (t.cost->Evaluate(t.params.data(), r.data(), nullptr)) fixed_cost_ += Corrector(t.loss, r.data(), t.rows).cost;
+      if (t.cost->Evaluate(t.params.data(), r.data(), nullptr)) {
+        fixed_cost_ += LossCorrector(t.loss, r.data(), t.rows).cost;
+      }
     }
   }
 
@@ -362,7 +338,7 @@ class Solver {
     for (double v : sc->r) {
       if (!std::isfinite(v)) return false;
     }
-    const Corrector c(t.loss, sc->r.data(), t.rows);
+    const LossCorrector c(t.loss, sc->r.data(), t.rows);
     *cost = c.cost;
     if (!jac) return true;
     Eigen::Map<Eigen::VectorXd> r(sc->r.data(), t.rows);
