@@ -440,17 +440,23 @@ class Solver {
       std::vector<int> local(s_.blocks.size(), -1);
       double c = 0.0;
       for (int p = ranges_[th]; p < ranges_[th + 1]; ++p) {
+        // The point's reduced blocks in the reduced system's column order,
+        // so that W's lower triangle is the reduced system's (Eliminate).
         std::vector<int>& cols = cols_[p];
         cols.clear();
-        int width = 0;
         for (int i = s_.point_begin[p]; i < s_.point_begin[p + 1]; ++i) {
           for (int kind : s_.terms[i].kind) {
             if (kind >= 0 && local[kind] < 0) {
-              local[kind] = width;
-              width += s_.blocks[kind].tangent;
+              local[kind] = 0;
               cols.push_back(kind);
             }
           }
+        }
+        std::sort(cols.begin(), cols.end(), [&](int a, int b) { return s_.blocks[a].col < s_.blocks[b].col; });
+        int width = 0;
+        for (int kind : cols) {
+          local[kind] = width;
+          width += s_.blocks[kind].tangent;
         }
         Eigen::Matrix3d v = Eigen::Matrix3d::Zero();
         Eigen::Vector3d gx = Eigen::Vector3d::Zero();
@@ -508,24 +514,28 @@ class Solver {
       s.setZero(s_.n, s_.n);
       b.setZero(s_.n);
       Eigen::Matrix<double, 3, Eigen::Dynamic> y;
-      Eigen::MatrixXd m;
+      std::vector<int> index;  // the reduced system's column of each of W's
+      const int n = s_.n;
+      double* const sd = s.data();
       for (int p = ranges_[th]; p < ranges_[th + 1]; ++p) {
         Eigen::Matrix3d v = v_[p];
         for (int i = 0; i < 3; ++i) v(i, i) += Damp(v(i, i), lambda);
         vinv_[p] = v.inverse();
         const auto& w = w_[p];
-        y.noalias() = vinv_[p].lazyProduct(w);
-        m.noalias() = w.transpose().lazyProduct(y);
-        const Eigen::VectorXd wg = y.transpose() * gx_[p];
-        const std::vector<int>& cols = cols_[p];
-        for (size_t a = 0, la = 0; a < cols.size(); la += s_.blocks[cols[a]].tangent, ++a) {
-          const FBlock& fa = s_.blocks[cols[a]];
-          b.segment(fa.col, fa.tangent) += wg.segment(la, fa.tangent);
-          for (size_t c = 0, lc = 0; c < cols.size(); lc += s_.blocks[cols[c]].tangent, ++c) {
-            const FBlock& fc = s_.blocks[cols[c]];
-            if (fa.col < fc.col) continue;
-            s.block(fa.col, fc.col, fa.tangent, fc.tangent) -= m.block(la, lc, fa.tangent, fc.tangent);
-          }
+        const int width = static_cast<int>(w.cols());
+        y.noalias() = vinv_[p] * w;
+        index.clear();
+        for (int kind : cols_[p]) {
+          const FBlock& f = s_.blocks[kind];
+          for (int k = 0; k < f.tangent; ++k) index.push_back(f.col + k);
+        }
+        // Wᵀ V⁻¹ W's lower triangle straight into S's (W's columns are in
+        // S's order), three products an entry: no width² temporary.
+        for (int j = 0; j < width; ++j) {
+          const double y0 = y(0, j), y1 = y(1, j), y2 = y(2, j);
+          double* column = sd + static_cast<long>(index[j]) * n;
+          b(index[j]) += y0 * gx_[p](0) + y1 * gx_[p](1) + y2 * gx_[p](2);
+          for (int i = j; i < width; ++i) column[index[i]] -= w(0, i) * y0 + w(1, i) * y1 + w(2, i) * y2;
         }
       }
     });
