@@ -76,6 +76,7 @@ Eigen::MatrixXd Gather(const Eigen::MatrixXd& m, const std::vector<int>& rows, c
 
 // Columns of the 3 rows of T for one point, with their values.
 struct PointCoupling {
+  std::vector<int> rows;  // the rows of J that hold the point
   std::vector<int> cols;  // reduced columns
   Eigen::MatrixXd t;      // 3 x cols: V_p⁻¹ W_p
   Eigen::Matrix3d v_inv = Eigen::Matrix3d::Zero();  // V_p⁻¹, or its pseudo-inverse
@@ -179,7 +180,8 @@ std::vector<PointCoupling> EliminatePoints(const RowView& j, int np, int n3, int
     const int end = static_cast<int>(static_cast<long>(np) * (th + 1) / t);
     for (int pt = begin; pt < end; ++pt) {
       PointCoupling& c = coupling[pt];
-      SplitRows(j, rows_of_point[pt], 3 * pt, n3, &a, &c.cols, &b);
+      c.rows = std::move(rows_of_point[pt]);
+      SplitRows(j, c.rows, 3 * pt, n3, &a, &c.cols, &b);
       const Eigen::Matrix3d vp = a.transpose() * a;
       Eigen::FullPivLU<Eigen::Matrix3d> lu(vp);
       if (lu.rank() < 3) {
@@ -212,11 +214,9 @@ std::vector<PointCoupling> EliminatePoints(const RowView& j, int np, int n3, int
   return coupling;
 }
 
-// Each group's residuals and leverages, from the rows of J.
-void GroupRedundancies(const PrecisionProblem& p, const RowView& j, int n3, const std::vector<PointCoupling>& coupling,
-                       const std::vector<double>& adjusted_residuals, PrecisionSolution* solution) {
+// Each row of J's observation group (an index into p.groups; -1: none).
+std::vector<signed char> RowGroups(const PrecisionProblem& p, int num_rows) {
   ceres::Problem& problem = *p.problem;
-  PrecisionSolution& out = *solution;
   std::unordered_map<ceres::ResidualBlockId, int> first_row;
   first_row.reserve(p.adjusted.size());
   int row = 0;
@@ -224,61 +224,118 @@ void GroupRedundancies(const PrecisionProblem& p, const RowView& j, int n3, cons
     first_row.emplace(id, row);
     row += problem.GetCostFunctionForResidualBlock(id)->num_residuals();
   }
-  const unsigned threads = ThreadCount(p.num_threads);
-  for (const PrecisionProblem::Group& group : p.groups) {
-    // The group's rows in contiguous shares, one partial sum per thread.
-    std::vector<GroupRedundancy> part(threads);
-    const std::size_t n = group.rows.size();
-    ParallelFor(threads, threads, [&](std::size_t th) {
-      GroupRedundancy& g = part[th];
-      Eigen::MatrixXd a, b;
-      std::vector<int> cols;
-      for (std::size_t k = n * th / threads; k < n * (th + 1) / threads; ++k) {
-        const auto& [id, mask] = group.rows[k];
-        const auto it = first_row.find(id);
-        if (it == first_row.end()) continue;
-        const int r0 = it->second;
-        const int nr = problem.GetCostFunctionForResidualBlock(id)->num_residuals();
-        // The point the rows hold, if any (a residual holds at most one).
-        int pt = -1;
-        for (int r = r0; r < r0 + nr && pt < 0; ++r) {
-          for (RowView::InnerIterator c(j, r); c; ++c) {
-            if (c.col() < n3) {
-              pt = c.col() / 3;
-              break;
-            }
-          }
-        }
-        SplitRows(j, r0, r0 + nr, pt >= 0 ? 3 * pt : -3, n3, &a, &cols, &b);
-        // J_i Σ J_iᵀ = a Σ_pp aᵀ + 2 sym(a Σ_pU bᵀ) + b Σ_UU bᵀ, Σ_pU = −T_p Σ_U.
-        Eigen::MatrixXd h = Eigen::MatrixXd::Zero(nr, nr);
-        if (!cols.empty()) {
-          const Eigen::MatrixXd s_uu = Gather(out.reduced_cov, cols, cols);
-          h += b * s_uu * b.transpose();
-        }
-        if (pt >= 0) {
-          const PointCoupling& c = coupling[pt];
-          h += a * out.point_cov[pt] * a.transpose();
-          if (!cols.empty() && !c.cols.empty()) {
-            const Eigen::MatrixXd cross = (a * c.t) * Gather(out.reduced_cov, c.cols, cols) * b.transpose();
-            h -= cross + cross.transpose();
-          }
-        }
-        for (int q = 0; q < nr; ++q) {
-          if (!(mask & (1u << q))) continue;
-          ++g.rows;
-          g.sum_squares += adjusted_residuals[r0 + q] * adjusted_residuals[r0 + q];
-          g.leverage += h(q, q);
-        }
+  std::vector<signed char> group(num_rows, -1);
+  for (size_t g = 0; g < p.groups.size(); ++g) {
+    for (const auto& [id, mask] : p.groups[g].rows) {
+      const auto it = first_row.find(id);
+      if (it == first_row.end()) continue;
+      const int nr = problem.GetCostFunctionForResidualBlock(id)->num_residuals();
+      for (int q = 0; q < nr; ++q) {
+        if (mask & (1u << q)) group[it->second + q] = static_cast<signed char>(g);
       }
-    });
-    GroupRedundancy g;
-    for (const GroupRedundancy& t : part) {
-      g.rows += t.rows;
-      g.sum_squares += t.sum_squares;
-      g.leverage += t.leverage;
     }
-    out.groups.push_back(g);
+  }
+  return group;
+}
+
+// Each point's covariance, and each group's residuals and leverages (the
+// diagonal of J Σ Jᵀ over its rows). For the rows of point p, with G_p the
+// reduced covariance over the point's columns and Σ_pU = −T_p G_p:
+//   h = a Σ_pp aᵀ − 2 a T_p G_p bᵀ + b G_p bᵀ,
+// G_p gathered and T_p G_p formed once for the point and all its rows
+// (Σ_pp = V_p⁻¹ + T_p G_p T_pᵀ is the point's covariance); b's few nonzero
+// columns taken as they are. Rows that hold no point: b Σ_UU bᵀ.
+void PointsAndGroups(const PrecisionProblem& p, const RowView& j, int n3, const std::vector<PointCoupling>& coupling,
+                     const std::vector<double>& residuals, PrecisionSolution* solution) {
+  PrecisionSolution& out = *solution;
+  const int np = static_cast<int>(coupling.size());
+  const size_t ng = p.groups.size();
+  const std::vector<signed char> row_group = RowGroups(p, static_cast<int>(j.rows()));
+  const unsigned t = ThreadCount(p.num_threads);
+  std::vector<std::vector<GroupRedundancy>> part(t, std::vector<GroupRedundancy>(ng));
+  auto add = [&](std::vector<GroupRedundancy>& sums, int r, double h) {
+    GroupRedundancy& g = sums[row_group[r]];
+    ++g.rows;
+    g.sum_squares += residuals[r] * residuals[r];
+    g.leverage += h;
+  };
+  out.point_cov.resize(np);
+  out.point_undetermined.resize(np);
+  ParallelFor(t, t, [&](std::size_t th) {
+    std::vector<GroupRedundancy>& sums = part[th];
+    Eigen::MatrixXd a, b, g, tg;
+    std::vector<int> cols, nz;
+    for (int pt = static_cast<int>(static_cast<long>(np) * th / t); pt < static_cast<long>(np) * (th + 1) / t;
+         ++pt) {
+      const PointCoupling& c = coupling[pt];
+      out.point_undetermined[pt] = c.undetermined ? 1 : 0;
+      Eigen::Matrix3d& cov = out.point_cov[pt];
+      cov = c.v_inv;
+      if (!c.cols.empty()) {
+        g = Gather(out.reduced_cov, c.cols, c.cols);
+        tg.noalias() = c.t * g;
+        cov.noalias() += tg * c.t.transpose();
+      }
+      if (ng == 0) continue;
+      bool any = false;
+      for (int r : c.rows) any = any || row_group[r] >= 0;
+      if (!any) continue;
+      SplitRows(j, c.rows, 3 * pt, n3, &a, &cols, &b);  // cols: c.cols
+      for (size_t k = 0; k < c.rows.size(); ++k) {
+        const int r = c.rows[k];
+        if (row_group[r] < 0) continue;
+        const Eigen::RowVector3d ar = a.row(k);
+        double h = ar * cov * ar.transpose();
+        nz.clear();
+        for (int x = 0; x < b.cols(); ++x) {
+          if (b(k, x) != 0.0) nz.push_back(x);
+        }
+        if (!nz.empty()) {
+          const Eigen::RowVectorXd atg = ar * tg;
+          for (int x : nz) {
+            h -= 2.0 * atg(x) * b(k, x);
+            for (int y : nz) h += b(k, x) * g(x, y) * b(k, y);
+          }
+        }
+        add(sums, r, h);
+      }
+    }
+  });
+  // The rows that hold no point.
+  const int rows = static_cast<int>(j.rows());
+  ParallelFor(t, t, [&](std::size_t th) {
+    std::vector<GroupRedundancy>& sums = part[th];
+    std::vector<int> cols;
+    std::vector<double> values;
+    for (int r = static_cast<int>(static_cast<long>(rows) * th / t); r < static_cast<long>(rows) * (th + 1) / t;
+         ++r) {
+      if (row_group[r] < 0) continue;
+      cols.clear();
+      values.clear();
+      bool point = false;
+      for (RowView::InnerIterator it(j, r); it; ++it) {
+        if (it.col() < n3) {
+          point = true;
+          break;
+        }
+        cols.push_back(it.col() - n3);
+        values.push_back(it.value());
+      }
+      if (point) continue;
+      double h = 0.0;
+      for (size_t x = 0; x < cols.size(); ++x) {
+        for (size_t y = 0; y < cols.size(); ++y) h += values[x] * out.reduced_cov(cols[x], cols[y]) * values[y];
+      }
+      add(sums, r, h);
+    }
+  });
+  out.groups.assign(ng, GroupRedundancy());
+  for (const std::vector<GroupRedundancy>& sums : part) {
+    for (size_t k = 0; k < ng; ++k) {
+      out.groups[k].rows += sums[k].rows;
+      out.groups[k].sum_squares += sums[k].sum_squares;
+      out.groups[k].leverage += sums[k].leverage;
+    }
   }
 }
 
@@ -524,16 +581,7 @@ PrecisionSolution SolvePrecision(const PrecisionProblem& p) {
     }
   }
 
-  out.point_cov.resize(np);
-  out.point_undetermined.resize(np);
-  ParallelFor(static_cast<std::size_t>(np), ThreadCount(p.num_threads), [&](std::size_t pt) {
-    const PointCoupling& c = coupling[pt];
-    out.point_undetermined[pt] = c.undetermined ? 1 : 0;
-    out.point_cov[pt] = c.v_inv;
-    if (!c.cols.empty()) out.point_cov[pt] += c.t * Gather(out.reduced_cov, c.cols, c.cols) * c.t.transpose();
-  });
-
-  if (!p.groups.empty()) GroupRedundancies(p, j, n3, coupling, adjusted_residuals, &out);
+  PointsAndGroups(p, j, n3, coupling, adjusted_residuals, &out);
   if (!p.withheld.empty()) WithholdPoints(p, j, n3, adjusted_residuals, &out);
 
   if (!p.checks.empty() && !CheckCovariances(p, eval, &out)) return out;
