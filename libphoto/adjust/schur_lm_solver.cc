@@ -317,8 +317,6 @@ class Solver {
     std::vector<double> r;
     std::vector<RowMajor> ambient, tangent;
     std::vector<double*> ptrs;
-    RowMajor reduced;
-    Eigen::MatrixXd jtj;
   };
   bool Evaluate(const Term& t, Scratch* sc, bool jac, double* cost) const {
     sc->r.resize(t.rows);
@@ -387,38 +385,38 @@ class Solver {
   }
 
   // JᵀJ and Jᵀr of one term's reduced cells into (u, g), lower triangle:
-  // its reduced Jacobian gathered into one row-major block, one product.
+  // entry by entry over its few rows, no temporaries.
   void AddReduced(const Term& t, Scratch* sc, Eigen::MatrixXd* u, Eigen::VectorXd* g) const {
-    const Eigen::Map<const Eigen::VectorXd> r(sc->r.data(), t.rows);
-    int width = 0;
+    const double* r = sc->r.data();
+    const int rows = t.rows;
+    const int n = s_.n;
+    double* const ud = u->data();
     for (size_t a = 0; a < t.params.size(); ++a) {
-      if (t.kind[a] >= 0) width += s_.blocks[t.kind[a]].tangent;
-    }
-    RowMajor& j = sc->reduced;
-    j.resize(t.rows, width);
-    for (size_t a = 0, at = 0; a < t.params.size(); ++a) {
-      if (t.kind[a] < 0) continue;
-      const int n = s_.blocks[t.kind[a]].tangent;
-      j.middleCols(at, n) = sc->tangent[a];
-      at += n;
-    }
-    Eigen::MatrixXd& jtj = sc->jtj;
-    jtj.noalias() = j.transpose().lazyProduct(j);
-    const Eigen::VectorXd jtr = j.transpose() * r;
-    for (size_t a = 0, at = 0; a < t.params.size(); ++a) {
       if (t.kind[a] < 0) continue;
       const FBlock& fa = s_.blocks[t.kind[a]];
-      g->segment(fa.col, fa.tangent) += jtr.segment(at, fa.tangent);
-      for (size_t b = 0, bt = 0; b < t.params.size(); ++b) {
+      const RowMajor& ja = sc->tangent[a];
+      for (int i = 0; i < fa.tangent; ++i) {
+        double gi = 0.0;
+        for (int q = 0; q < rows; ++q) gi += ja(q, i) * r[q];
+        (*g)(fa.col + i) += gi;
+      }
+      for (size_t b = 0; b <= a; ++b) {
         if (t.kind[b] < 0) continue;
         const FBlock& fb = s_.blocks[t.kind[b]];
-        // The lower triangle (and whole diagonal blocks).
-        if (fa.col >= fb.col) {
-          u->block(fa.col, fb.col, fa.tangent, fb.tangent) += jtj.block(at, bt, fa.tangent, fb.tangent);
+        const RowMajor& jb = sc->tangent[b];
+        // The cell (fa, fb) where fa's columns come after fb's, else its
+        // transpose: the lower triangle either way.
+        const bool lower = fa.col >= fb.col;
+        for (int i = 0; i < fa.tangent; ++i) {
+          for (int k = 0; k < fb.tangent; ++k) {
+            const int row = lower ? fa.col + i : fb.col + k, col = lower ? fb.col + k : fa.col + i;
+            if (row < col) continue;  // a diagonal block's upper half
+            double d = 0.0;
+            for (int q = 0; q < rows; ++q) d += ja(q, i) * jb(q, k);
+            ud[static_cast<long>(col) * n + row] += d;
+          }
         }
-        bt += fb.tangent;
       }
-      at += fa.tangent;
     }
   }
 
@@ -472,11 +470,23 @@ class Solver {
             if (t.kind[a] == kPoint) x = static_cast<int>(a);
           }
           const RowMajor& jx = sc.tangent[x];
-          v.noalias() += jx.transpose() * jx;
-          gx.noalias() += jx.transpose() * r;
+          for (int q = 0; q < t.rows; ++q) {
+            for (int i = 0; i < 3; ++i) {
+              gx(i) += jx(q, i) * r(q);
+              for (int k = 0; k < 3; ++k) v(i, k) += jx(q, i) * jx(q, k);
+            }
+          }
           for (size_t a = 0; a < t.params.size(); ++a) {
             if (t.kind[a] < 0) continue;
-            w.middleCols(local[t.kind[a]], s_.blocks[t.kind[a]].tangent).noalias() += jx.transpose() * sc.tangent[a];
+            const RowMajor& ja = sc.tangent[a];
+            const int at = local[t.kind[a]];
+            for (int k = 0; k < s_.blocks[t.kind[a]].tangent; ++k) {
+              for (int i = 0; i < 3; ++i) {
+                double d = 0.0;
+                for (int q = 0; q < t.rows; ++q) d += jx(q, i) * ja(q, k);
+                w(i, at + k) += d;
+              }
+            }
           }
           AddReduced(t, &sc, &u, &g);
         }
