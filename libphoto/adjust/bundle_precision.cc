@@ -12,6 +12,7 @@
 #include <map>
 #include <unordered_map>
 
+#include "libphoto/adjust/dense_cholesky.h"
 #include "libphoto/adjust/jacobian.h"
 #include "libphoto/base/parallel.h"
 
@@ -92,8 +93,8 @@ struct PointCoupling {
 // at 1,000 photos (6,000 reduced parameters) each is 288 MB.
 bool InverseByCholesky(Eigen::MatrixXd* s_inout, int threads) {
   Eigen::MatrixXd& s = *s_inout;
-  Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(s);  // in place: S's lower triangle becomes L
-  if (llt.info() != Eigen::Success) return false;
+  // In place: S's lower triangle becomes L.
+  if (!CholeskyInPlace(&s, ThreadCount(threads))) return false;
   const Eigen::MatrixXd& l = s;
   const Eigen::Index n = s.rows();
   const Eigen::Index b = 96;
