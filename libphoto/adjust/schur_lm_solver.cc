@@ -14,6 +14,7 @@
 #include <limits>
 #include <unordered_map>
 
+#include "libphoto/adjust/dense_cholesky.h"
 #include "libphoto/adjust/dense_schur_solver.h"
 #include "libphoto/adjust/jacobian.h"
 #include "libphoto/base/parallel.h"
@@ -432,7 +433,7 @@ class Solver {
     ParallelFor(threads_, threads_, [&](size_t th) {
       Eigen::MatrixXd& u = s_t_[th];
       Eigen::VectorXd& g = b_t_[th];
-      u.setZero(s_.n, s_.n);
+      ZeroLower(&u, s_.n);
       g.setZero(s_.n);
       Scratch sc;
       std::vector<int> local(s_.blocks.size(), -1);
@@ -501,14 +502,34 @@ class Solver {
       Evaluate(s_.terms[i], &sc, true, &c);
       AddReduced(s_.terms[i], &sc, &s_t_[0], &b_t_[0]);
     }
-    u_ = s_t_[0];
+    if (u_.rows() != s_.n) u_.resize(s_.n, s_.n);
+    SumLower(0, nullptr, &u_);
     gf_ = b_t_[0];
-    for (unsigned th = 1; th < threads_; ++th) {
-      u_.triangularView<Eigen::Lower>() += s_t_[th];
-      gf_ += b_t_[th];
-    }
+    for (unsigned th = 1; th < threads_; ++th) gf_ += b_t_[th];
     max_gradient_ = gf_.size() > 0 ? gf_.cwiseAbs().maxCoeff() : 0.0;
     for (const Eigen::Vector3d& g : gx_) max_gradient_ = std::max(max_gradient_, g.cwiseAbs().maxCoeff());
+  }
+
+  // The lower triangle of an n x n matrix zeroed (the upper is never read:
+  // half the memory to write each step).
+  static void ZeroLower(Eigen::MatrixXd* m, int n) {
+    if (m->rows() != n || m->cols() != n) m->resize(n, n);
+    for (int c = 0; c < n; ++c) m->col(c).tail(n - c).setZero();
+  }
+
+  // out's lower triangle = the threads' matrices from `first` on summed
+  // (plus `extra`), added to out's own where first is 1 (out is thread 0's):
+  // by column blocks on every thread.
+  void SumLower(unsigned first, const Eigen::MatrixXd* extra, Eigen::MatrixXd* out) {
+    const int n = s_.n, width = 64;
+    ParallelFor(static_cast<std::size_t>((n + width - 1) / width), threads_, [&](std::size_t k) {
+      for (int c = static_cast<int>(k) * width; c < std::min(n, static_cast<int>(k + 1) * width); ++c) {
+        auto column = out->col(c).tail(n - c);
+        if (first == 0) column = s_t_[0].col(c).tail(n - c);
+        for (unsigned th = 1; th < threads_; ++th) column += s_t_[th].col(c).tail(n - c);
+        if (extra != nullptr) column += extra->col(c).tail(n - c);
+      }
+    });
   }
 
   static double Damp(double diagonal, double lambda) {
@@ -521,7 +542,7 @@ class Solver {
     ParallelFor(threads_, threads_, [&](size_t th) {
       Eigen::MatrixXd& s = s_t_[th];
       Eigen::VectorXd& b = b_t_[th];
-      s.setZero(s_.n, s_.n);
+      ZeroLower(&s, s_.n);
       b.setZero(s_.n);
       Eigen::Matrix<double, 3, Eigen::Dynamic> y;
       std::vector<int> index;  // the reduced system's column of each of W's
@@ -549,11 +570,8 @@ class Solver {
         }
       }
     });
-    for (unsigned th = 1; th < threads_; ++th) {
-      s_t_[0].triangularView<Eigen::Lower>() += s_t_[th];
-      b_t_[0] += b_t_[th];
-    }
-    s_t_[0].triangularView<Eigen::Lower>() += u_;
+    for (unsigned th = 1; th < threads_; ++th) b_t_[0] += b_t_[th];
+    SumLower(1, &u_, &s_t_[0]);
     for (int i = 0; i < s_.n; ++i) s_t_[0](i, i) += Damp(u_(i, i), lambda);
     b_t_[0] -= gf_;
   }
@@ -564,9 +582,8 @@ class Solver {
   bool SolveReduced(double lambda, double* predicted, double* step_norm) {
     df_ = Eigen::VectorXd::Zero(s_.n);
     if (s_.n > 0) {
-      Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(s_t_[0]);
-      if (llt.info() != Eigen::Success) return false;
-      df_ = llt.solve(b_t_[0]);
+      if (!internal::CholeskyInPlace(&s_t_[0], threads_)) return false;
+      df_ = internal::CholeskySolve(s_t_[0], b_t_[0]);
       if (!df_.allFinite()) return false;
     }
     std::vector<double> part(threads_, 0.0), norm2(threads_, 0.0);
