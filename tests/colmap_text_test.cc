@@ -39,6 +39,39 @@ TEST(ColmapText, WriteThenReadKeepsEveryResidual) {
   EXPECT_EQ(back.images[3].name, model.images[3].name);
 }
 
+// Each rolling-shutter photo's motion goes beside the model
+// (rolling_shutter.txt) and comes back exactly; a model without one leaves
+// no file, and writing it over an earlier model's removes that model's.
+TEST(ColmapText, RollingShuttersKeptBesideTheModel) {
+  SyntheticSurveyOptions o;
+  o.num_tie_points = 50;
+  o.readout_time_s = 0.0473;
+  o.flight_speed_mps = 12.3;
+  SparseModel model = MakeSyntheticSurvey(o).observed;
+  ASSERT_GT(model.images.size(), 3u);
+  model.images[2].rolling_shutter.reset();  // a global shutter among them
+  model.images[1].rolling_shutter->velocity = Eigen::Vector3d(-0.1, 1.0 / 3.0, 2e-7);
+  testing::TempDir dir;
+  WriteColmapText(model, dir / "m");
+  ASSERT_TRUE(std::filesystem::exists(dir / "m" / "rolling_shutter.txt"));
+  const SparseModel back = ReadColmapText(dir / "m");
+  for (size_t i = 0; i < model.images.size(); ++i) {
+    const auto& want = model.images[i].rolling_shutter;
+    const auto& got = back.images[i].rolling_shutter;
+    ASSERT_EQ(got.has_value(), want.has_value()) << model.images[i].name;
+    if (!want) continue;
+    EXPECT_EQ(got->readout_time_s, want->readout_time_s);
+    EXPECT_EQ(got->velocity, want->velocity);
+  }
+  EXPECT_FALSE(back.images[2].rolling_shutter);
+  EXPECT_EQ(back.images[0].rolling_shutter->readout_time_s, 0.0473);
+
+  for (Image& image : model.images) image.rolling_shutter.reset();
+  WriteColmapText(model, dir / "m");
+  EXPECT_FALSE(std::filesystem::exists(dir / "m" / "rolling_shutter.txt"));
+  for (const Image& image : ReadColmapText(dir / "m").images) EXPECT_FALSE(image.rolling_shutter) << image.name;
+}
+
 TEST(ColmapText, ReadsColmapConventionsAndModels) {
   // A hand-written COLMAP model: the 2D point (100.5, 50.5) is the centre of
   // pixel (100, 50) in aerotri's convention; cx 320 becomes 319.5.
@@ -85,6 +118,11 @@ TEST(ColmapText, RefusesWhatItCannotRepresentWithTheLine) {
       {"cameras.txt", "1e20 PINHOLE 640 480 500 500 320 240\n", 1,
        "expected an integer (at most 2147483647 in magnitude) for CAMERA_ID, got '1e20'"},
       {"cameras.txt", "1 PINHOLE 4294967296 480 500 500 320 240\n", 1, "for WIDTH, got '4294967296'"},
+      {"rolling_shutter.txt", "1 0.04 12 0\n", 1, "expected 'IMAGE_ID READOUT_TIME_S VX VY VZ NAME', got 4"},
+      {"rolling_shutter.txt", "# header\n2 0.04 12 0 0 b.jpg\n", 2, "refers to image 2, not in images.txt"},
+      {"rolling_shutter.txt", "1 -0.04 12 0 0 a.jpg\n", 1, "expected a readout time from 0 to 1 s, got -0.04"},
+      {"rolling_shutter.txt", "1 0.04 12 nan 0 a.jpg\n", 1, "for VX VY VZ, got 'nan'"},
+      {"rolling_shutter.txt", "1 0.04 12 0 0 a.jpg\n1 0.04 12 0 0 a.jpg\n", 2, "appears twice"},
   };
   for (const Case& c : cases) {
     testing::TempDir dir;

@@ -13,8 +13,10 @@
 #include <nlohmann/json.hpp>
 
 #include "libphoto/base/atomic_file.h"
+#include "libphoto/base/error.h"
 #include "libphoto/export/dsm.h"
 #include "libphoto/export/raster.h"
+#include "libphoto/io/colmap_text.h"
 #include "libphoto/pipeline/pipeline.h"
 #include "libphoto/simulate/survey_writer.h"
 #include "tests/test_util.h"
@@ -93,6 +95,18 @@ TEST_F(RollingShutterSurvey, ModelledItIsAsGoodAsAGlobalShutterAndUnmodelledItIs
   const PipelineOptions& rolling_ws = *rolling_ws_;
   const nlohmann::json global = Georeferenced(global_ws, true);
   const nlohmann::json modelled = Georeferenced(rolling_ws, true);
+  // What the deliverables read: each registered photo with the motion it was
+  // adjusted with (georeferenced/rolling_shutter.txt).
+  const auto carried = [&] {
+    int n = 0;
+    for (const Image& image : ReadColmapText(rolling_ws.workspace / "georeferenced").images) {
+      if (!image.rolling_shutter) continue;
+      ++n;
+      EXPECT_NEAR(image.rolling_shutter->velocity.norm(), 12.0, 0.05) << image.name;
+    }
+    return n;
+  };
+  EXPECT_EQ(carried(), modelled["images"]["registered"].get<int>());
   // `aerotri check` on the finished survey sees each mark from its row's
   // camera too: the same figures as the adjustment's.
   CheckSurvey(rolling_ws);
@@ -100,6 +114,7 @@ TEST_F(RollingShutterSurvey, ModelledItIsAsGoodAsAGlobalShutterAndUnmodelledItIs
   EXPECT_NEAR(checked["check_points"]["rmse_3d_m"].get<double>(), modelled["check_points"]["rmse_3d_m"].get<double>(),
               1e-6);
   const nlohmann::json unmodelled = Georeferenced(rolling_ws, false);
+  EXPECT_EQ(carried(), 0);  // adjusted as global shutters: no motion left over from the run before
   auto check_3d = [](const nlohmann::json& r) { return r["check_points"]["rmse_3d_m"].get<double>(); };
   std::printf("check RMSE 3D: global shutter %.4f m; rolling shutter modelled %.4f m (%.2fx), taken for a global "
               "shutter %.4f m (%.2fx)\n",
@@ -140,6 +155,10 @@ TEST_F(RollingShutterSurvey, ModelledItIsAsGoodAsAGlobalShutterAndUnmodelledItIs
   EXPECT_LT(std::abs(readout - 0.040), 4.0 * sigma);
   EXPECT_NE(est["source"].get<std::string>().find("estimated in the adjustment"), std::string::npos);
   EXPECT_LT(check_3d(estimated), 1.3 * check_3d(global));
+  for (const Image& image : ReadColmapText(rolling_ws.workspace / "georeferenced").images) {
+    ASSERT_TRUE(image.rolling_shutter) << image.name;
+    EXPECT_DOUBLE_EQ(image.rolling_shutter->readout_time_s, readout) << image.name;
+  }
   CheckSurvey(rolling_ws);
   const nlohmann::json rechecked = nlohmann::json::parse(ReadTextFile(rolling_ws.workspace / "report.json"));
   EXPECT_NEAR(check_3d(rechecked), check_3d(estimated), 1e-6);
@@ -203,13 +222,21 @@ TEST_F(RollingShutterSurvey, DsmAndOrthomosaicSeeEachRowFromWhereTheCameraWas) {
   ASSERT_EQ(modelled["adjustment"]["shutter"][0]["model"], "rolling");
   const Deliverables global = Delivered(global_ws);
   const Deliverables rolling = Delivered(rolling_ws);
-  // The deliverables unaware of the shutter: the same cameras, the report
-  // saying global.
+  // The deliverables unaware of the shutter: the same cameras without their
+  // motion (georeferenced/rolling_shutter.txt set aside), the report saying
+  // global.
+  const fs::path motion = rolling_ws.workspace / "georeferenced" / "rolling_shutter.txt";
+  const std::string motion_text = ReadTextFile(motion);
   nlohmann::json unaware_report = modelled;
   unaware_report["adjustment"]["shutter"][0]["model"] = "global";
+  fs::remove(motion);
+  // A report that says rolling over cameras without their motion is refused.
+  EXPECT_THROW(RunOrthoStage([&] { PipelineOptions f = rolling_ws; f.force = true; return f; }()), InvalidArgument);
   WriteTextFileAtomically(rolling_ws.workspace / "report.json", unaware_report.dump(2));
   const Deliverables unaware = Delivered(rolling_ws);
-  WriteTextFileAtomically(rolling_ws.workspace / "report.json", modelled.dump(2));  // as the adjustment wrote it
+  // As the adjustment wrote them.
+  WriteTextFileAtomically(rolling_ws.workspace / "report.json", modelled.dump(2));
+  WriteTextFileAtomically(motion, motion_text);
   ASSERT_GT(global.dsm_errors_m.size(), 100u);
   ASSERT_GT(rolling.dsm_errors_m.size(), 100u);
   ASSERT_GT(unaware.dsm_errors_m.size(), 100u);

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "libphoto/io/colmap_text.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <iomanip>
@@ -162,6 +163,36 @@ std::string CameraToColmap(const Camera& c) {
   return out.str();
 }
 
+// rolling_shutter.txt, where it exists: each listed image's motion.
+void ReadRollingShutters(const std::filesystem::path& path, const std::unordered_map<long, int>& image_by_id,
+                         SparseModel* model) {
+  if (!std::filesystem::exists(path)) return;
+  for (const Line& line : ReadLines(path)) {
+    if (line.tokens.size() < 6) {
+      throw ParseError(path.string(), line.number,
+                       "expected 'IMAGE_ID READOUT_TIME_S VX VY VZ NAME', got " + std::to_string(line.tokens.size()) +
+                           " columns");
+    }
+    const long id = Integer(path, line, 0, "IMAGE_ID");
+    const auto image = image_by_id.find(id);
+    if (image == image_by_id.end()) {
+      throw ParseError(path.string(), line.number, "refers to image " + std::to_string(id) + ", not in images.txt");
+    }
+    RollingShutterMotion motion;
+    motion.readout_time_s = Number(path, line, 1, "READOUT_TIME_S");
+    if (motion.readout_time_s < 0.0 || motion.readout_time_s > 1.0) {
+      throw ParseError(path.string(), line.number,
+                       "expected a readout time from 0 to 1 s, got " + line.tokens[1]);
+    }
+    for (int k = 0; k < 3; ++k) motion.velocity[k] = Number(path, line, 2 + k, "VX VY VZ");
+    Image& target = model->images[image->second];
+    if (target.rolling_shutter) {
+      throw ParseError(path.string(), line.number, "image " + std::to_string(id) + " appears twice");
+    }
+    target.rolling_shutter = motion;
+  }
+}
+
 }  // namespace
 
 SparseModel ReadColmapText(const std::filesystem::path& dir) {
@@ -303,6 +334,7 @@ SparseModel ReadColmapText(const std::filesystem::path& dir) {
       }
     }
   }
+  ReadRollingShutters(dir / "rolling_shutter.txt", image_by_id, &model);
   return model;
 }
 
@@ -375,6 +407,25 @@ void WriteColmapText(const SparseModel& model, const std::filesystem::path& dir)
         out << " " << point2d_of[o].first << " " << point2d_of[o].second;
       }
       out << "\n";
+    }
+  });
+  const auto motion_path = dir / "rolling_shutter.txt";
+  const bool any_rolling = std::any_of(model.images.begin(), model.images.end(),
+                                       [](const Image& image) { return image.rolling_shutter.has_value(); });
+  if (!any_rolling) {
+    std::filesystem::remove(motion_path);  // an earlier model's motion is not this one's
+    return;
+  }
+  WriteFileAtomically(motion_path, [&](std::ostream& out) {
+    out << "# Rolling-shutter photos (aerotri), one line each; the others are global shutters':\n"
+           "#   IMAGE_ID, READOUT_TIME_S (first row to last), VX, VY, VZ (camera velocity, m/s, in the model's "
+           "frame), NAME\n"
+        << std::setprecision(17);
+    for (const Image& image : model.images) {
+      if (!image.rolling_shutter) continue;
+      const Eigen::Vector3d& v = image.rolling_shutter->velocity;
+      out << image.id << " " << image.rolling_shutter->readout_time_s << " " << v.x() << " " << v.y() << " " << v.z()
+          << " " << image.name << "\n";
     }
   });
 }

@@ -16,6 +16,14 @@
 // unequal focal lengths, are refused with the file and line. On writing:
 // PINHOLE -> SIMPLE_PINHOLE, BROWN -> FULL_OPENCV, SNAVELY -> RADIAL, all
 // exact. 2D points without a 3D point are not kept.
+//
+// Rolling shutters: aerotri adds rolling_shutter.txt beside the three files
+// when any photo is a rolling shutter's, one line per such photo:
+// IMAGE_ID READOUT_TIME_S VX VY VZ NAME, the readout from the first row to
+// the last and the camera's velocity in the model's frame (m/s), as
+// RollingShutterMotion holds them. COLMAP ignores the file; without it every
+// photo is a global shutter's. So whatever reads a model sees each row from
+// where its camera was, with the motion that the model was adjusted with.
 
 #include <filesystem>
 
@@ -25,7 +33,8 @@ namespace aerotri {
 
 SparseModel ReadColmapText(const std::filesystem::path& dir);
 
-// Writes the three files into dir (created if needed), each atomically.
+// Writes the three files into dir (created if needed), each atomically, and
+// rolling_shutter.txt where a photo has one (a stale one is removed).
 // Check points and control points are written as ordinary 3D points.
 void WriteColmapText(const SparseModel& model, const std::filesystem::path& dir);
 

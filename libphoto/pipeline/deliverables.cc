@@ -49,32 +49,28 @@ std::string CloudFileName(const PipelineOptions& o) {
 namespace {
 
 // The adjusted survey's cameras (georeferenced/), each photo with the
-// rolling shutter the adjustment modelled (report.json adjustment.shutter;
-// a readout it estimated replaces the photos' own), so that every
-// deliverable sees each row from where its camera was; photos the
-// adjustment took for a global shutter's stay so.
-SparseModel ReadSurveyModel(const PipelineOptions& o, const IngestView& ingest, const json& report) {
-  SparseModel model = ReadColmapText(o.workspace / "georeferenced");
-  std::map<int, double> readout;  // by camera id, of the groups modelled as rolling
-  if (report.contains("adjustment") && report["adjustment"].contains("shutter")) {
-    for (const json& shutter : report["adjustment"]["shutter"]) {
-      if (shutter.value("model", "") != "rolling") continue;
-      readout[shutter.value("camera", -1)] =
-          shutter.value("readout_estimated", false) ? shutter.value("readout_time_s", 0.0) : -1.0;
+// rolling shutter the adjustment modelled it with (georeferenced/
+// rolling_shutter.txt: the photos' stated motion or their GPS track's, the
+// readout stated or estimated), so that every deliverable sees each row from
+// where its camera was. A report that says a camera group was adjusted as a
+// rolling shutter while no photo of it carries a motion is a workspace
+// written before the motion was kept: refused, rather than taken for global.
+SparseModel ReadSurveyModel(const PipelineOptions& o, const json& report) {
+  const fs::path dir = o.workspace / "georeferenced";
+  SparseModel model = ReadColmapText(dir);
+  if (!report.contains("adjustment") || !report["adjustment"].contains("shutter")) return model;
+  for (const json& shutter : report["adjustment"]["shutter"]) {
+    if (shutter.value("model", "") != "rolling") continue;
+    const int camera_id = shutter.value("camera", -1);
+    const bool carried = std::any_of(model.images.begin(), model.images.end(), [&](const Image& image) {
+      return image.rolling_shutter && model.cameras[image.camera].id == camera_id;
+    });
+    if (!carried) {
+      throw InvalidArgument((o.workspace / "report.json").string() + ": camera " + std::to_string(camera_id) +
+                            " was adjusted as a rolling shutter, but " + (dir / "rolling_shutter.txt").string() +
+                            " gives none of its photos a motion (a workspace from an earlier aerotri): rerun "
+                            "`aerotri georeference --force`");
     }
-  }
-  if (readout.empty()) return model;
-  std::map<std::string, int> image_of;
-  for (size_t i = 0; i < model.images.size(); ++i) image_of[model.images[i].name] = static_cast<int>(i);
-  std::string source;
-  for (const auto& [name, motion] : ingest.RollingShutters(&source)) {
-    const auto it = image_of.find(name);
-    if (it == image_of.end()) continue;
-    Image& image = model.images[it->second];
-    const auto r = readout.find(model.cameras[image.camera].id);
-    if (r == readout.end()) continue;
-    image.rolling_shutter = motion;
-    if (r->second >= 0.0) image.rolling_shutter->readout_time_s = r->second;
   }
   return model;
 }
@@ -769,7 +765,7 @@ bool RunDenseShare(const PipelineOptions& o) {
   fs::remove(o.workspace / "dense.json");
   fs::remove(o.workspace / "report.html");
   const IngestView ingest = LoadIngest(o);
-  const SparseModel model = ReadSurveyModel(o, ingest, report);
+  const SparseModel model = ReadSurveyModel(o, report);
   const fs::path images_dir = ingest.ImagesDir(o);
   const int max_dimension = ingest.record.working_max_dimension;
   const DenseOptions d = DenseOptionsOf(o);
@@ -1043,7 +1039,7 @@ bool RunDenseStage(const PipelineOptions& o) {
     ReadFusedShares(o, dense_progress, &summary, add);
   } else {
     const IngestView ingest = LoadIngest(o);
-    const SparseModel model = ReadSurveyModel(o, ingest, report);
+    const SparseModel model = ReadSurveyModel(o, report);
     const fs::path images_dir = ingest.ImagesDir(o);
     const int max_dimension = ingest.record.working_max_dimension;
     sink.consume = [&](DenseCloud&& part) { add(part.positions, part.colours, part.resolution_m); };
@@ -1346,7 +1342,7 @@ bool RunOrthoStage(const PipelineOptions& o) {
   }
   const GeoFrame deliverable = DeliverableFrame(report, dense);
   IngestView ingest = LoadIngest(o);
-  const SparseModel model = ReadSurveyModel(o, ingest, report);
+  const SparseModel model = ReadSurveyModel(o, report);
   const fs::path images_dir = ingest.ImagesDir(o);
   const int max_dimension = ingest.record.working_max_dimension;
   const Raster surface = ReadRaster(surface_path);
@@ -1459,7 +1455,7 @@ void CheckPointsOnSurvey(const PipelineOptions& o, json* report_out) {
   const GeoFrame g = FrameOf(report);
   IngestView ingest = LoadIngest(o);
   // Each mark seen from where its photo's camera was.
-  SparseModel model = ReadSurveyModel(o, ingest, report);
+  SparseModel model = ReadSurveyModel(o, report);
   std::map<std::string, int> image_of, ingest_of;
   for (size_t i = 0; i < model.images.size(); ++i) image_of[model.images[i].name] = static_cast<int>(i);
   for (size_t i = 0; i < ingest.names.size(); ++i) ingest_of[ingest.names[i]] = static_cast<int>(i);
