@@ -57,7 +57,12 @@ TEST(SplitWorkflow, FourPartsUnderSnakemakeMatchTheUnsplitSurvey) {
   }
   EXPECT_EQ(in_a_part.size(), 35u);
   EXPECT_EQ(own, 35);
-  WriteSplitWorkflow(s, parts, fs::path(AEROTRI_BINARY_DIR) / "tools" / "aerotri");
+  // The global adjustment's options as `aerotri split` passes them on: the
+  // whole survey's (the leave-one-out off; the library's stated sigmas,
+  // where the command line's default is auto).
+  WriteSplitWorkflow(s, parts, fs::path(AEROTRI_BINARY_DIR) / "tools" / "aerotri",
+                     {"--gcp", o.gcp.string(), "--checkpoints", o.checkpoints.string(), "--leave-one-out", "off",
+                      "--variance-components", "stated"});
   const std::string command = "cd '" + s.workspace.string() + "' && snakemake --cores 2 --quiet > snakemake.log 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << ReadTextFile(s.workspace / "snakemake.log");
 
@@ -70,6 +75,11 @@ TEST(SplitWorkflow, FourPartsUnderSnakemakeMatchTheUnsplitSurvey) {
   EXPECT_EQ(split["images"]["registered"], 35);
   EXPECT_EQ(split["reconstruction"].value("initial_pair", ""), "merged from 4 parts") << split["reconstruction"];
   EXPECT_NE(split["status"], "failed") << split["errors"];
+  // The global adjustment ran with the whole survey's options.
+  json split_options = split["georeference_options"], whole_options = whole["georeference_options"];
+  split_options.erase("ingest");
+  whole_options.erase("ingest");
+  EXPECT_EQ(split_options, whole_options);
   // The seams are invisible at the check points ...
   const double whole_rmse = whole["check_points"]["rmse_3d_m"].get<double>();
   const double split_rmse = split["check_points"]["rmse_3d_m"].get<double>();

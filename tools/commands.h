@@ -161,6 +161,7 @@ struct RunArgs {
   std::string band_share;
   int parts = 4;               // split
   double seam_margin_m = 0.0;  // split; 0: automatic
+  std::vector<std::string> georeference_args;  // split: the global adjustment's options as given
   int threads = 0;
   std::string gps_altitude = "egm96";
   double gps_sigma_h_m = kDefaultGpsSigmaH;

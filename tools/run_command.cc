@@ -2,7 +2,10 @@
 // aerotri run IMAGES --output DIR, and the stages as subcommands.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
+#include <set>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -100,6 +103,40 @@ void AddWorkspaceOption(CLI::App* cmd, std::string* workspace, bool must_exist) 
   if (must_exist) opt->check(CLI::ExistingDirectory);
 }
 
+// The georeference stage's options (control, check points, CRS and the
+// adjustment policy).
+void AddGeoreferenceOptions(CLI::App* cmd, RunArgs* a) {
+  cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
+  cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format); never used in the adjustment");
+  AddGcpPixelOriginOption(cmd, a);
+  cmd->add_option("--gcp-sigma-h", a->gcp_sigma_h_m, "Control horizontal sigma (metres) when the file gives none")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  AddAdjustmentPolicyOptions(cmd, &a->policy);
+  cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
+}
+
+// The options from index `first` on of cmd that the command line gave, as
+// arguments again ("--name" for a flag, "--name" and each value for the
+// others); the values of `paths` made absolute, for a command run
+// elsewhere.
+std::vector<std::string> GivenOptions(const CLI::App& cmd, size_t first, const std::set<std::string>& paths) {
+  std::vector<std::string> args;
+  const std::vector<const CLI::Option*> options = cmd.get_options();
+  for (size_t k = first; k < options.size(); ++k) {
+    const CLI::Option& opt = *options[k];
+    if (opt.count() == 0 || opt.get_lnames().empty()) continue;
+    const std::string& name = opt.get_lnames().front();
+    args.push_back("--" + name);
+    if (opt.get_expected_min() == 0) continue;  // a flag
+    for (const std::string& value : opt.results()) {
+      args.push_back(paths.count(name) ? std::filesystem::absolute(value).string() : value);
+    }
+  }
+  return args;
+}
+
 void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned groups) {
   if (images_positional) {
     cmd->add_option("images", a->images_dir, "Folder of photos (.jpg, .jpeg, .tif)")
@@ -165,17 +202,7 @@ void AddStageOptions(CLI::App* cmd, RunArgs* a, bool images_positional, unsigned
                     "photos' stated rolling shutter; for blocks that fold or bend)")
         ->check(CLI::IsMember({"check", "priors"}))->capture_default_str();
   }
-  if (groups & kGeoreferenceOptions) {
-    cmd->add_option("--gcp", a->gcp, "Ground control points (OpenDroneMap gcp_list.txt, full-resolution pixels)");
-    cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format); never used in the adjustment");
-    AddGcpPixelOriginOption(cmd, a);
-    cmd->add_option("--gcp-sigma-h", a->gcp_sigma_h_m, "Control horizontal sigma (metres) when the file gives none")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    cmd->add_option("--gcp-sigma-v", a->gcp_sigma_v_m, "Control vertical sigma (metres) when the file gives none")
-        ->check(CLI::PositiveNumber)->capture_default_str();
-    AddAdjustmentPolicyOptions(cmd, &a->policy);
-    cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
-  }
+  if (groups & kGeoreferenceOptions) AddGeoreferenceOptions(cmd, a);
   if (groups & kDenseOptions) {
     cmd->add_option("--dense-resolution", a->dense_resolution_m,
                     "Dense cloud spacing (metres); 0 = the survey's GSD at the working resolution")
@@ -299,13 +326,14 @@ void RegisterRunCommands(CLI::App& app, CommandAction* run) {
                     "Photos within this distance (metres) of a part's cell join it, shared with its neighbour; "
                     "0 = 2.5 x the median distance between neighbouring photos")
         ->check(CLI::NonNegativeNumber)->capture_default_str();
-    cmd->add_option("--gcp", a->gcp, "Ground control points for the global adjustment (OpenDroneMap gcp_list.txt)");
-    cmd->add_option("--checkpoints", a->checkpoints, "Check points (same format)");
-    AddGcpPixelOriginOption(cmd, a.get());
-    cmd->add_option("--crs", a->crs, "Output CRS; default: the GCP file's, else the UTM zone of the survey");
-    cmd->add_option("--leave-one-out", a->policy.leave_one_out, "Leave-one-out over the control points")
-        ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-    cmd->callback([a, run]() { *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); }; });
+    // The global adjustment's options, as georeference takes them: the
+    // workflow's georeference step is given those the user gave.
+    const size_t first_georeference_option = cmd->get_options().size();
+    AddGeoreferenceOptions(cmd, a.get());
+    cmd->callback([a, run, cmd, first_georeference_option]() {
+      a->georeference_args = GivenOptions(*cmd, first_georeference_option, {"gcp", "checkpoints", "camera-file"});
+      *run = [a](ToolContext& ctx) { return RunPipelineCommand(*a, ctx); };
+    });
   }
   {
     auto a = std::make_shared<RunArgs>();
@@ -477,7 +505,7 @@ int RunPipelineCommand(const RunArgs& a, ToolContext& ctx) {
   } else if (s == "split") {
     RunIngestStage(o);
     const std::vector<SurveyPart> parts = SplitSurvey(o, SplitOptions{a.parts, a.seam_margin_m});
-    WriteSplitWorkflow(o, parts, AerotriExecutable());
+    WriteSplitWorkflow(o, parts, AerotriExecutable(), a.georeference_args);
     for (const SurveyPart& p : parts) {
       *ctx.out << "part=" << p.name << " photos=" << p.images.size() << " own=" << p.core << "\n";
     }

@@ -2,7 +2,9 @@
 #include "libphoto/pipeline/survey_split.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <optional>
 #include <map>
@@ -165,8 +167,8 @@ std::vector<SurveyPart> SplitSurvey(const PipelineOptions& o, const SplitOptions
   return parts;
 }
 
-void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>& parts,
-                        const fs::path& aerotri) {
+void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>& parts, const fs::path& aerotri,
+                        const std::vector<std::string>& georeference_args) {
   const IngestView ingest = LoadIngest(o);
   const fs::path photos = fs::absolute(ingest.ImagesDir(o));
   json plan = {{"parts", json::array()}, {"images_dir", photos.string()}};
@@ -183,11 +185,12 @@ void WriteSplitWorkflow(const PipelineOptions& o, const std::vector<SurveyPart>&
   const size_t shares = parts.size();  // the dense stage's jobs, as many as the parts'
   const std::string threads = o.num_threads > 0 ? " --threads " + std::to_string(o.num_threads) : "";
   std::string georef;
-  if (!o.gcp.empty()) georef += " --gcp " + Quote(fs::absolute(o.gcp).string());
-  if (!o.checkpoints.empty()) georef += " --checkpoints " + Quote(fs::absolute(o.checkpoints).string());
-  if (!o.georef.output_crs.empty()) georef += " --crs " + Quote(o.georef.output_crs);
-  if (o.gcp_pixel_origin == PixelOrigin::kCorner) georef += " --gcp-pixel-origin corner";
-  georef += o.georef.leave_one_out ? " --leave-one-out on" : " --leave-one-out off";
+  for (const std::string& arg : georeference_args) {
+    const bool plain = !arg.empty() && std::all_of(arg.begin(), arg.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || std::strchr("_./,:=+-", c) != nullptr;
+    });
+    georef += " " + (plain ? arg : Quote(arg));
+  }
   // The parts read their photos' GPS as the survey's ingest did.
   std::ostringstream ingest_args;
   ingest_args << " --max-dimension " << o.features.max_dimension << " --gps-altitude "

@@ -60,10 +60,14 @@ std::vector<SurveyPart> SplitSurvey(const PipelineOptions& options, const SplitO
 
 // WS/parts/<part>/images/ (symbolic links to the photos), WS/parts/plan.json
 // and WS/Snakefile, whose rules call `aerotri` (the executable path given)
-// with the options of `options` that each step reads (control, check
-// points, CRS, threads).
+// with the options of `options` that each step reads (the photos' GPS,
+// working size, threads). The global adjustment's step is given
+// georeference_args as they are (control, check points, CRS, the adjustment
+// policy: `aerotri georeference`'s options; paths absolute, as the workflow
+// runs in WS).
 void WriteSplitWorkflow(const PipelineOptions& options, const std::vector<SurveyPart>& parts,
-                        const std::filesystem::path& aerotri_executable);
+                        const std::filesystem::path& aerotri_executable,
+                        const std::vector<std::string>& georeference_args);
 
 struct MergeSummary {
   int parts = 0;
