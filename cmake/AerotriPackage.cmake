@@ -18,7 +18,7 @@ install(FILES ${PROJECT_BINARY_DIR}/aerotriConfig.cmake
 
 # pkg-config: static archives, so Libs lists them in link order (dependants
 # first) followed by what they need. Ceres has no .pc file on Debian; it and
-# its glog are named directly.
+# its glog (and CHOLMOD, which the adjust library calls) are named directly.
 set(AEROTRI_PC_LIBS "")
 foreach(lib pipeline simulate report export dense sfm survey adjust geometry matching features
             ingest io model georef camera base)

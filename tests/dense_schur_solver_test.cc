@@ -158,8 +158,9 @@ TEST(DenseSchurSolver, HeldIntrinsicsStayExactlyAndOtherModelsWork) {
 }
 
 // The BAL engine takes free networks of merged blocks without a loss; the
-// general Schur engine (schur_lm_solver.h) takes the rest up to its size;
-// beyond both, Ceres.
+// general Schur engine (schur_lm_solver.h) takes the rest, its reduced
+// system dense or, beyond kMaxSchurLmDenseSize, sparse; Ceres where another
+// linear solver is asked for.
 TEST(DenseSchurSolver, UsedOnlyWhereItApplies) {
   BalScene scene = MakeBalScene(5, 6, 120, 0.5, CameraModelId::kSnavely);
   // A robust loss: the general engine; Ceres when asked for.
@@ -194,20 +195,29 @@ TEST(DenseSchurSolver, UsedOnlyWhereItApplies) {
     o.max_iterations = 1;
     EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "aerotri_schur_lm");
   }
-  // Too large for both: Ceres, and the aerotri engine asked for says why not.
+  // Beyond the dense size: the same engine, its reduced system held sparse.
   {
-    const BalScene big = MakeBalScene(6, kMaxSchurLmReducedSize / 9 + 2, 60, 0.5, CameraModelId::kSnavely);
+    const BalScene big = MakeBalScene(6, kMaxSchurLmDenseSize / 9 + 2, 60, 0.5, CameraModelId::kSnavely);
     SparseModel m = big.start;
     BundleOptions o;
     o.max_iterations = 1;
-    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "sparse_schur");
+    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "aerotri_schur_lm_sparse");
+  }
+  // Another linear solver asked for: Ceres, and the aerotri engine asked for
+  // with it says why not.
+  {
+    SparseModel m = scene.start;
+    BundleOptions o;
+    o.max_iterations = 1;
+    o.linear_solver = LinearSolverChoice::kIterativeSchur;
+    EXPECT_EQ(AdjustBundle(&m, o).linear_solver, "iterative_schur");
     o.engine = BundleEngine::kAerotri;
-    SparseModel m2 = big.start;
+    SparseModel m2 = scene.start;
     try {
       AdjustBundle(&m2, o);
-      ADD_FAILURE() << "the aerotri engine took a reduced system beyond its size";
+      ADD_FAILURE() << "the aerotri engine took a linear solver it does not have";
     } catch (const InvalidArgument& e) {
-      EXPECT_NE(std::string(e.what()).find("reduced system"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("linear solver"), std::string::npos) << e.what();
     }
   }
 }

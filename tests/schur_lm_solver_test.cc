@@ -6,10 +6,16 @@
 // solution within the injected noise of the truth (both bounds).
 #include "libphoto/adjust/schur_lm_solver.h"
 
+#include <ceres/autodiff_cost_function.h>
+#include <ceres/loss_function.h>
+#include <ceres/manifold.h>
+#include <ceres/rotation.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
+#include <utility>
 
 #include "libphoto/adjust/bundle_adjuster.h"
 #include "libphoto/simulate/synthetic_survey.h"
@@ -161,6 +167,162 @@ TEST(SchurLmSolver, RobustLossCorrectedAsCeresCorrectsIt) {
   o.loss = LossType::kNone;
   AdjustBundle(&plain, o);
   EXPECT_GT(MaxCentreDifference(plain, ours), 1e-3);
+}
+
+// A problem built directly: nadir cameras (a quaternion each, on Ceres'
+// manifold; a centre each, held by a GPS prior) sharing one focal length and
+// a held principal point, points seen by the cameras they fall in, half the
+// reprojections under Huber.
+struct Reprojection {
+  Reprojection(double x, double y) : x(x), y(y) {}
+  template <typename T>
+  bool operator()(const T* q, const T* c, const T* f, const T* pp, const T* X, T* r) const {
+    const T d[3] = {X[0] - c[0], X[1] - c[1], X[2] - c[2]};
+    T p[3];
+    ceres::QuaternionRotatePoint(q, d, p);
+    r[0] = f[0] * p[0] / p[2] + pp[0] - x;
+    r[1] = f[0] * p[1] / p[2] + pp[1] - y;
+    return true;
+  }
+  double x, y;
+};
+struct CentrePrior {
+  template <typename T>
+  bool operator()(const T* c, T* r) const {
+    for (int i = 0; i < 3; ++i) r[i] = (c[i] - at[i]) / sigma;
+    return true;
+  }
+  Eigen::Vector3d at;
+  double sigma;
+};
+
+struct DirectProblem {
+  std::vector<std::array<double, 4>> q;
+  std::vector<Eigen::Vector3d> c;
+  std::vector<Eigen::Vector3d> x;
+  double f = 990.0;
+  double pp[2] = {0.0, 0.0};
+};
+
+DirectProblem MakeDirect(int nx, int ny, int points, std::mt19937& rng) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  DirectProblem p;
+  for (int i = 0; i < nx * ny; ++i) {
+    // Nadir: the camera's z down, x east, y south (a half turn about x).
+    p.q.push_back({0.02 * g(rng), 1.0, 0.02 * g(rng), 0.02 * g(rng)});
+    p.c.emplace_back(20.0 * (i % nx), 20.0 * (i / nx), 50.0);
+  }
+  for (int k = 0; k < points; ++k) {
+    p.x.emplace_back(-20.0 + (20.0 * nx + 20.0) * u(rng), -20.0 + (20.0 * ny + 20.0) * u(rng), 2.0 * g(rng));
+  }
+  return p;
+}
+
+// The problem over `p`'s values as observed from `truth` (0.5 px noise),
+// GPS on the centres at 5 cm.
+void BuildDirect(const DirectProblem& truth, DirectProblem* p, std::mt19937& rng, ceres::Problem* problem,
+                 std::vector<double*>* points) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (size_t i = 0; i < p->q.size(); ++i) {
+    problem->AddParameterBlock(p->q[i].data(), 4, new ceres::QuaternionManifold);
+    auto* prior = new ceres::AutoDiffCostFunction<CentrePrior, 3, 3>(
+        new CentrePrior{truth.c[i] + 0.05 * Eigen::Vector3d(g(rng), g(rng), g(rng)), 0.05});
+    problem->AddResidualBlock(prior, nullptr, p->c[i].data());
+  }
+  problem->AddParameterBlock(p->pp, 2);
+  problem->SetParameterBlockConstant(p->pp);
+  int k = 0;
+  for (size_t j = 0; j < p->x.size(); ++j) {
+    std::vector<std::pair<size_t, Eigen::Vector2d>> seen;  // points seen twice or more
+    for (size_t i = 0; i < p->q.size(); ++i) {
+      const Eigen::Vector3d d = truth.x[j] - truth.c[i];
+      double cam[3];
+      ceres::QuaternionRotatePoint(truth.q[i].data(), d.data(), cam);
+      if (cam[2] <= 0.0) continue;
+      const Eigen::Vector2d uv(truth.f * cam[0] / cam[2], truth.f * cam[1] / cam[2]);
+      if (std::abs(uv.x()) < 600.0 && std::abs(uv.y()) < 450.0) seen.emplace_back(i, uv);
+    }
+    if (seen.size() < 2) continue;
+    for (const auto& [i, uv] : seen) {
+      auto* cost = new ceres::AutoDiffCostFunction<Reprojection, 2, 4, 3, 1, 2, 3>(
+          new Reprojection(uv.x() + 0.5 * g(rng), uv.y() + 0.5 * g(rng)));
+      problem->AddResidualBlock(cost, (k++ % 2 == 0) ? new ceres::HuberLoss(1.0) : nullptr, p->q[i].data(),
+                                p->c[i].data(), &p->f, p->pp, p->x[j].data());
+    }
+    points->push_back(p->x[j].data());
+  }
+}
+
+// The reduced system held sparse (CHOLMOD, as beyond the dense size) and
+// held dense: the same steps, so the same optimum to rounding.
+TEST(SchurLmSolver, SparseReducedSystemTakesTheSameStepsAsTheDenseOne) {
+  std::mt19937 rng(5);
+  // Normalised quaternions for the truth.
+  DirectProblem truth = MakeDirect(7, 5, 600, rng);
+  for (auto& q : truth.q) Eigen::Map<Eigen::Vector4d>(q.data()).normalize();
+  DirectProblem start = truth;
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (auto& c : start.c) c += 0.3 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+  for (auto& x : start.x) x += 0.3 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+  for (auto& q : start.q) {
+    for (double& e : q) e += 0.002 * g(rng);
+    Eigen::Map<Eigen::Vector4d>(q.data()).normalize();
+  }
+  start.f = 1010.0;
+
+  struct Solved {
+    DirectProblem p;
+    ceres::Solver::Summary summary;
+  };
+  const auto solve = [&](ReducedStorage storage) {
+    Solved s{start, {}};
+    std::mt19937 noise(9);  // the same observations both times
+    ceres::Problem problem;
+    std::vector<double*> points;
+    BuildDirect(truth, &s.p, noise, &problem, &points);
+    ceres::Solver::Options options;
+    options.max_num_iterations = 50;
+    options.function_tolerance = 1e-14;
+    options.parameter_tolerance = 1e-14;
+    options.gradient_tolerance = 1e-14;
+    options.num_threads = 2;
+    std::string why_not;
+    EXPECT_TRUE(SolveSchurLm(options, &problem, points, &s.summary, &why_not, storage)) << why_not;
+    return s;
+  };
+  const Solved dense = solve(ReducedStorage::kDense), sparse = solve(ReducedStorage::kSparse);
+  EXPECT_EQ(dense.summary.linear_solver_type_used, ceres::DENSE_SCHUR);
+  EXPECT_EQ(sparse.summary.linear_solver_type_used, ceres::SPARSE_SCHUR);
+  ASSERT_TRUE(dense.summary.IsSolutionUsable()) << dense.summary.message;
+  ASSERT_TRUE(sparse.summary.IsSolutionUsable()) << sparse.summary.message;
+  EXPECT_LT(sparse.summary.final_cost, 0.01 * sparse.summary.initial_cost);
+  // Step by step: the same damped systems, the same costs to rounding (the
+  // last steps, within 1e-14 of the cost, may stop the two a step apart).
+  const size_t steps = std::min(dense.summary.iterations.size(), sparse.summary.iterations.size());
+  EXPECT_GT(steps, 5u);
+  EXPECT_LE(std::max(dense.summary.iterations.size(), sparse.summary.iterations.size()) - steps, 2u);
+  for (size_t k = 0; k < steps; ++k) {
+    const ceres::IterationSummary &a = sparse.summary.iterations[k], &b = dense.summary.iterations[k];
+    EXPECT_EQ(a.step_is_successful, b.step_is_successful) << "iteration " << k;
+    EXPECT_NEAR(a.cost, b.cost, 1e-10 * b.cost) << "iteration " << k;
+  }
+  EXPECT_NEAR(sparse.summary.final_cost, dense.summary.final_cost, 1e-10 * dense.summary.final_cost);
+  EXPECT_NEAR(sparse.p.f, dense.p.f, 1e-7);
+  double centres = 0.0, points = 0.0, truth_rms = 0.0;
+  for (size_t i = 0; i < start.c.size(); ++i) {
+    centres = std::max(centres, (sparse.p.c[i] - dense.p.c[i]).norm());
+    truth_rms += (sparse.p.c[i] - truth.c[i]).squaredNorm();
+  }
+  for (size_t j = 0; j < start.x.size(); ++j) points = std::max(points, (sparse.p.x[j] - dense.p.x[j]).norm());
+  EXPECT_LT(centres, 1e-7);
+  EXPECT_LT(points, 1e-6);
+  // Against the truth: the 5 cm GPS (8.7 cm in 3D) and 0.5 px (2.5 cm on the
+  // ground) hold the centres to centimetres, not to nothing.
+  truth_rms = std::sqrt(truth_rms / start.c.size());
+  EXPECT_GT(truth_rms, 1e-3);
+  EXPECT_LT(truth_rms, 0.1);
+  EXPECT_NEAR(sparse.p.f, truth.f, 5.0);
 }
 
 }  // namespace

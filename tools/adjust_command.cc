@@ -78,6 +78,11 @@ void RegisterAdjustCommand(CLI::App& app, CommandAction* run) {
                   "Output CRS (EPSG:32632, EPSG:32632+5773, WKT, PROJ string); default: the GCP "
                   "file's CRS, else the UTM zone of the survey centre");
   AddAdjustmentPolicyOptions(cmd, &a->policy);
+  cmd->add_option("--solver", a->solver,
+                  "auto: aerotri's Schur Levenberg-Marquardt, its reduced camera system dense up to 4,000 "
+                  "columns and sparse (CHOLMOD) beyond; dense or sparse: that engine with the system so held; "
+                  "ceres: Ceres' solver, the reference (the same results; for comparisons and benchmarks)")
+      ->check(CLI::IsMember({"auto", "dense", "sparse", "ceres"}))->capture_default_str();
   cmd->add_option("--loss", a->loss,
                   "Robust loss on reprojection residuals of the screening solve that finds the blunders (the "
                   "estimate is least squares on the observations it keeps); none: least squares throughout")
@@ -221,6 +226,11 @@ int RunAdjust(const AdjustArgs& args, ToolContext& ctx) {
   bundle.outlier_threshold_px = args.outlier_threshold_px;
   bundle.num_threads = args.threads;
   bundle.max_iterations = args.max_iterations;
+  if (args.solver == "ceres") bundle.engine = BundleEngine::kCeres;
+  if (args.solver == "dense" || args.solver == "sparse") {
+    bundle.engine = BundleEngine::kAerotri;
+    bundle.reduced_storage = args.solver == "dense" ? ReducedStorage::kDense : ReducedStorage::kSparse;
+  }
 
   const PixelOrigin origin = args.gcp_pixel_origin == "corner" ? PixelOrigin::kCorner : PixelOrigin::kCentre;
   // From measurements: every input read and checked before anything is

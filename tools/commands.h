@@ -103,6 +103,7 @@ struct AdjustArgs {
   double outlier_threshold_px = SurveyBundleOptions().outlier_threshold_px;
   int threads = 0;
   int max_iterations = 100;
+  std::string solver = "auto";  // auto, dense, sparse, ceres
 };
 void RegisterAdjustCommand(CLI::App& app, CommandAction* run);
 int RunAdjust(const AdjustArgs& args, ToolContext& ctx);

@@ -1179,8 +1179,9 @@ void SolveProblem(const BundleOptions& options, const ceres::Solver::Options& so
                      options.linear_solver == LinearSolverChoice::kDenseSchur;
   if (!dense) why_not = "the linear solver " + ToString(options.linear_solver) + " was asked for";
   const bool ours = options.engine != BundleEngine::kCeres && dense;
-  if (ours && SolveSchurLm(solver_options, problem, points, &result->ceres, &why_not)) {
-    result->solver = "aerotri_schur_lm";
+  if (ours && SolveSchurLm(solver_options, problem, points, &result->ceres, &why_not, options.reduced_storage)) {
+    result->solver =
+        result->ceres.linear_solver_type_used == ceres::SPARSE_SCHUR ? "aerotri_schur_lm_sparse" : "aerotri_schur_lm";
     return;
   }
   if (options.engine == BundleEngine::kAerotri) {

@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "libphoto/adjust/schur_lm_solver.h"
 #include "libphoto/model/sparse_model.h"
 
 namespace aerotri {
@@ -186,6 +187,9 @@ struct BundleOptions {
 
   LinearSolverChoice linear_solver = LinearSolverChoice::kAuto;
   BundleEngine engine = BundleEngine::kAuto;
+  // How aerotri's Schur engine holds its reduced system (schur_lm_solver.h):
+  // dense up to kMaxSchurLmDenseSize columns, sparse beyond (auto).
+  ReducedStorage reduced_storage = ReducedStorage::kAuto;
   int num_threads = 0;  // 0: all hardware threads
   int max_iterations = 100;
   // Stop once the cost is estimated within this fraction of the optimum

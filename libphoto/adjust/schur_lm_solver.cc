@@ -12,11 +12,14 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <stdexcept>
 #include <unordered_map>
 
 #include "libphoto/adjust/dense_cholesky.h"
 #include "libphoto/adjust/dense_schur_solver.h"
 #include "libphoto/adjust/jacobian.h"
+#include "libphoto/adjust/sparse_cholesky.h"
 #include "libphoto/base/parallel.h"
 
 namespace aerotri {
@@ -111,10 +114,6 @@ bool ReadStructure(ceres::Problem& problem, const std::vector<double*>& points, 
         f.manifold = problem.GetManifold(b);
         s->n += f.tangent;
         s->blocks.push_back(f);
-        if (s->n > kMaxSchurLmReducedSize) {
-          *why_not = "the reduced system has more than " + std::to_string(kMaxSchurLmReducedSize) + " columns";
-          return false;
-        }
       }
       t.kind.push_back(it->second);
       ++varying;
@@ -138,12 +137,116 @@ bool ReadStructure(ceres::Problem& problem, const std::vector<double*>& points, 
   return true;
 }
 
+// Where the reduced system's cells live. Dense: an n x n column-major
+// matrix, its lower triangle used. Sparse: only the blocks that share a point
+// or a residual, compressed by columns as CHOLMOD takes them (a diagonal
+// block whole; its upper half is not read). Either way the cell of row block
+// a and column block b (a at or after b; the blocks' order is their
+// columns') holds, for column k of b, a's rows one after another from
+// start + k * stride.
+class ReducedLayout {
+ public:
+  struct Span {
+    long start = 0;
+    long stride = 0;
+  };
+
+  ReducedLayout(const Structure& s, bool sparse) : sparse_(sparse), n_(s.n) {
+    const int nb = static_cast<int>(s.blocks.size());
+    col_.resize(nb);
+    for (int b = 0; b < nb; ++b) col_[b] = s.blocks[b].col;
+    if (!sparse_) {
+      size_ = static_cast<long>(n_) * n_;
+      return;
+    }
+    // The row blocks at or after each column block that share a residual
+    // or a point with it.
+    std::vector<std::vector<int>> below(nb);
+    for (int b = 0; b < nb; ++b) below[b].push_back(b);
+    std::vector<int> blocks;
+    const auto pair_up = [&](int first, int last) {
+      blocks.clear();
+      for (int i = first; i < last; ++i) {
+        for (int kind : s.terms[i].kind) {
+          if (kind >= 0) blocks.push_back(kind);
+        }
+      }
+      std::sort(blocks.begin(), blocks.end());
+      blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
+      for (size_t i = 0; i < blocks.size(); ++i) {
+        for (size_t j = i + 1; j < blocks.size(); ++j) below[blocks[i]].push_back(blocks[j]);
+      }
+    };
+    for (size_t p = 0; p + 1 < s.point_begin.size(); ++p) pair_up(s.point_begin[p], s.point_begin[p + 1]);
+    for (int i = s.first_other; i < static_cast<int>(s.terms.size()); ++i) pair_up(i, i + 1);
+    rows_of_.resize(nb);
+    offset_of_.resize(nb);
+    base_.resize(nb);
+    height_.resize(nb);
+    diagonal_.resize(n_);
+    colptr_.assign(1, 0);
+    long size = 0;
+    for (int b = 0; b < nb; ++b) {
+      std::vector<int>& rows = below[b];
+      std::sort(rows.begin(), rows.end());
+      rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+      int height = 0;
+      for (int a : rows) {
+        offset_of_[b].push_back(height);
+        height += s.blocks[a].tangent;
+      }
+      rows_of_[b] = std::move(rows);
+      base_[b] = size;
+      height_[b] = height;
+      for (int k = 0; k < s.blocks[b].tangent; ++k) {
+        diagonal_[col_[b] + k] = size + k;  // the column's first rows are its own block's
+        for (int a : rows_of_[b]) {
+          for (int i = 0; i < s.blocks[a].tangent; ++i) rowidx_.push_back(col_[a] + i);
+        }
+        size += height;
+        if (size > std::numeric_limits<int>::max()) {
+          throw std::length_error("the reduced system has more than 2^31 nonzeros");
+        }
+        colptr_.push_back(static_cast<int>(size));
+      }
+    }
+    size_ = size;
+  }
+
+  bool sparse() const { return sparse_; }
+  long size() const { return size_; }
+  // The cell of row block a and column block b (a >= b; a block's cells
+  // with itself are its diagonal block).
+  Span Cell(int a, int b) const {
+    if (!sparse_) return {static_cast<long>(col_[b]) * n_ + col_[a], n_};
+    const std::vector<int>& rows = rows_of_[b];
+    const auto it = std::lower_bound(rows.begin(), rows.end(), a);
+    return {base_[b] + offset_of_[b][it - rows.begin()], height_[b]};
+  }
+  long Diagonal(int c) const { return sparse_ ? diagonal_[c] : static_cast<long>(c) * n_ + c; }
+  // The pattern, compressed by columns (sparse only).
+  const std::vector<int>& colptr() const { return colptr_; }
+  const std::vector<int>& rows() const { return rowidx_; }
+
+ private:
+  bool sparse_ = false;
+  int n_ = 0;
+  long size_ = 0;
+  std::vector<int> col_;
+  std::vector<std::vector<int>> rows_of_, offset_of_;
+  std::vector<long> base_, diagonal_;
+  std::vector<int> height_, colptr_, rowidx_;
+};
+
 using internal::LossCorrector;
 
 class Solver {
  public:
-  Solver(const ceres::Solver::Options& options, Structure* s)
-      : options_(options), s_(*s), threads_(ThreadCount(options.num_threads)) {
+  Solver(const ceres::Solver::Options& options, Structure* s, bool sparse)
+      : options_(options), s_(*s), threads_(ThreadCount(options.num_threads)), layout_(s_, sparse) {
+    if (layout_.sparse()) {
+      cholesky_ = std::make_unique<internal::SparseCholesky>(s_.n, layout_.colptr(), layout_.rows());
+    }
     const int np = static_cast<int>(s_.points.size());
     // Thread ranges of points with about equal numbers of terms.
     ranges_.push_back(0);
@@ -161,7 +264,7 @@ class Solver {
     w_.resize(np);
     cols_.resize(np);
     plus_.resize(s_.blocks.size());
-    u_.resize(s_.n, s_.n);
+    Resize(&u_);
     gf_.resize(s_.n);
     s_t_.assign(threads_, Eigen::MatrixXd());
     b_t_.assign(threads_, Eigen::VectorXd());
@@ -179,7 +282,8 @@ class Solver {
     const auto start = Clock::now();
     ceres::Solver::Summary& out = *summary;
     out = ceres::Solver::Summary();
-    out.linear_solver_type_given = out.linear_solver_type_used = ceres::DENSE_SCHUR;
+    out.linear_solver_type_given = out.linear_solver_type_used =
+        layout_.sparse() ? ceres::SPARSE_SCHUR : ceres::DENSE_SCHUR;
     out.jacobian_evaluation_time_in_seconds = out.linear_solver_time_in_seconds = 0.0;
     out.residual_evaluation_time_in_seconds = 0.0;
     out.num_residual_blocks_reduced = static_cast<int>(s_.terms.size());
@@ -390,7 +494,6 @@ class Solver {
   void AddReduced(const Term& t, Scratch* sc, Eigen::MatrixXd* u, Eigen::VectorXd* g) const {
     const double* r = sc->r.data();
     const int rows = t.rows;
-    const int n = s_.n;
     double* const ud = u->data();
     for (size_t a = 0; a < t.params.size(); ++a) {
       if (t.kind[a] < 0) continue;
@@ -403,18 +506,20 @@ class Solver {
       }
       for (size_t b = 0; b <= a; ++b) {
         if (t.kind[b] < 0) continue;
-        const FBlock& fb = s_.blocks[t.kind[b]];
-        const RowMajor& jb = sc->tangent[b];
-        // The cell (fa, fb) where fa's columns come after fb's, else its
-        // transpose: the lower triangle either way.
-        const bool lower = fa.col >= fb.col;
-        for (int i = 0; i < fa.tangent; ++i) {
-          for (int k = 0; k < fb.tangent; ++k) {
-            const int row = lower ? fa.col + i : fb.col + k, col = lower ? fb.col + k : fa.col + i;
-            if (row < col) continue;  // a diagonal block's upper half
+        // The cell of the later block's rows and the earlier's columns: the
+        // lower triangle either way.
+        const bool later = t.kind[a] >= t.kind[b];
+        const int hi = later ? t.kind[a] : t.kind[b], lo = later ? t.kind[b] : t.kind[a];
+        const RowMajor& jh = later ? ja : sc->tangent[b];
+        const RowMajor& jl = later ? sc->tangent[b] : ja;
+        const ReducedLayout::Span span = layout_.Cell(hi, lo);
+        const int hi_tangent = s_.blocks[hi].tangent, lo_tangent = s_.blocks[lo].tangent;
+        for (int k = 0; k < lo_tangent; ++k) {
+          double* column = ud + span.start + k * span.stride;
+          for (int i = hi == lo ? k : 0; i < hi_tangent; ++i) {
             double d = 0.0;
-            for (int q = 0; q < rows; ++q) d += ja(q, i) * jb(q, k);
-            ud[static_cast<long>(col) * n + row] += d;
+            for (int q = 0; q < rows; ++q) d += jh(q, i) * jl(q, k);
+            column[i] += d;
           }
         }
       }
@@ -433,7 +538,7 @@ class Solver {
     ParallelFor(threads_, threads_, [&](size_t th) {
       Eigen::MatrixXd& u = s_t_[th];
       Eigen::VectorXd& g = b_t_[th];
-      ZeroLower(&u, s_.n);
+      ZeroLower(&u);
       g.setZero(s_.n);
       Scratch sc;
       std::vector<int> local(s_.blocks.size(), -1);
@@ -502,7 +607,7 @@ class Solver {
       Evaluate(s_.terms[i], &sc, true, &c);
       AddReduced(s_.terms[i], &sc, &s_t_[0], &b_t_[0]);
     }
-    if (u_.rows() != s_.n) u_.resize(s_.n, s_.n);
+    Resize(&u_);
     SumLower(0, nullptr, &u_);
     gf_ = b_t_[0];
     for (unsigned th = 1; th < threads_; ++th) gf_ += b_t_[th];
@@ -510,17 +615,39 @@ class Solver {
     for (const Eigen::Vector3d& g : gx_) max_gradient_ = std::max(max_gradient_, g.cwiseAbs().maxCoeff());
   }
 
-  // The lower triangle of an n x n matrix zeroed (the upper is never read:
-  // half the memory to write each step).
-  static void ZeroLower(Eigen::MatrixXd* m, int n) {
-    if (m->rows() != n || m->cols() != n) m->resize(n, n);
+  // A matrix of the layout's values: n x n, or the pattern's as a column.
+  void Resize(Eigen::MatrixXd* m) const {
+    const long rows = layout_.sparse() ? layout_.size() : s_.n, cols = layout_.sparse() ? 1 : s_.n;
+    if (m->rows() != rows || m->cols() != cols) m->resize(rows, cols);
+  }
+
+  // The lower triangle zeroed (the upper is never read: half the memory to
+  // write each step); a pattern's values all.
+  void ZeroLower(Eigen::MatrixXd* m) const {
+    Resize(m);
+    if (layout_.sparse()) {
+      m->setZero();
+      return;
+    }
+    const int n = s_.n;
     for (int c = 0; c < n; ++c) m->col(c).tail(n - c).setZero();
   }
 
   // out's lower triangle = the threads' matrices from `first` on summed
   // (plus `extra`), added to out's own where first is 1 (out is thread 0's):
-  // by column blocks on every thread.
+  // by column blocks (a pattern's values by stretches) on every thread.
   void SumLower(unsigned first, const Eigen::MatrixXd* extra, Eigen::MatrixXd* out) {
+    if (layout_.sparse()) {
+      const long size = layout_.size(), chunk = 1 << 16;
+      ParallelFor(static_cast<std::size_t>((size + chunk - 1) / chunk), threads_, [&](std::size_t k) {
+        const long begin = static_cast<long>(k) * chunk, len = std::min(chunk, size - begin);
+        auto stretch = out->col(0).segment(begin, len);
+        if (first == 0) stretch = s_t_[0].col(0).segment(begin, len);
+        for (unsigned th = 1; th < threads_; ++th) stretch += s_t_[th].col(0).segment(begin, len);
+        if (extra != nullptr) stretch += extra->col(0).segment(begin, len);
+      });
+      return;
+    }
     const int n = s_.n, width = 64;
     ParallelFor(static_cast<std::size_t>((n + width - 1) / width), threads_, [&](std::size_t k) {
       for (int c = static_cast<int>(k) * width; c < std::min(n, static_cast<int>(k + 1) * width); ++c) {
@@ -542,37 +669,51 @@ class Solver {
     ParallelFor(threads_, threads_, [&](size_t th) {
       Eigen::MatrixXd& s = s_t_[th];
       Eigen::VectorXd& b = b_t_[th];
-      ZeroLower(&s, s_.n);
+      ZeroLower(&s);
       b.setZero(s_.n);
       Eigen::Matrix<double, 3, Eigen::Dynamic> y;
-      std::vector<int> index;  // the reduced system's column of each of W's
-      const int n = s_.n;
+      std::vector<int> local;  // W's first column of each of the point's blocks
       double* const sd = s.data();
       for (int p = ranges_[th]; p < ranges_[th + 1]; ++p) {
         Eigen::Matrix3d v = v_[p];
         for (int i = 0; i < 3; ++i) v(i, i) += Damp(v(i, i), lambda);
         vinv_[p] = v.inverse();
         const auto& w = w_[p];
-        const int width = static_cast<int>(w.cols());
         y.noalias() = vinv_[p] * w;
-        index.clear();
-        for (int kind : cols_[p]) {
+        const std::vector<int>& cols = cols_[p];
+        local.clear();
+        int width = 0;
+        for (int kind : cols) {
           const FBlock& f = s_.blocks[kind];
-          for (int k = 0; k < f.tangent; ++k) index.push_back(f.col + k);
+          local.push_back(width);
+          for (int k = 0; k < f.tangent; ++k) b(f.col + k) += y.col(width + k).dot(gx_[p]);
+          width += f.tangent;
         }
-        // Wᵀ V⁻¹ W's lower triangle straight into S's (W's columns are in
-        // S's order), three products an entry: no width² temporary.
-        for (int j = 0; j < width; ++j) {
-          const double y0 = y(0, j), y1 = y(1, j), y2 = y(2, j);
-          double* column = sd + static_cast<long>(index[j]) * n;
-          b(index[j]) += y0 * gx_[p](0) + y1 * gx_[p](1) + y2 * gx_[p](2);
-          for (int i = j; i < width; ++i) column[index[i]] -= w(0, i) * y0 + w(1, i) * y1 + w(2, i) * y2;
+        // Wᵀ V⁻¹ W's lower triangle straight into S's, cell by cell (W's
+        // columns are in S's order), three products an entry: no width²
+        // temporary.
+        for (size_t cb = 0; cb < cols.size(); ++cb) {
+          const int lo_tangent = s_.blocks[cols[cb]].tangent;
+          for (size_t ca = cb; ca < cols.size(); ++ca) {
+            const ReducedLayout::Span span = layout_.Cell(cols[ca], cols[cb]);
+            const int hi_tangent = s_.blocks[cols[ca]].tangent, la = local[ca];
+            for (int k = 0; k < lo_tangent; ++k) {
+              const int j = local[cb] + k;
+              const double y0 = y(0, j), y1 = y(1, j), y2 = y(2, j);
+              double* column = sd + span.start + k * span.stride;
+              for (int i = ca == cb ? k : 0; i < hi_tangent; ++i) {
+                column[i] -= w(0, la + i) * y0 + w(1, la + i) * y1 + w(2, la + i) * y2;
+              }
+            }
+          }
         }
       }
     });
     for (unsigned th = 1; th < threads_; ++th) b_t_[0] += b_t_[th];
     SumLower(1, &u_, &s_t_[0]);
-    for (int i = 0; i < s_.n; ++i) s_t_[0](i, i) += Damp(u_(i, i), lambda);
+    double* const sd = s_t_[0].data();
+    const double* const ud = u_.data();
+    for (int i = 0; i < s_.n; ++i) sd[layout_.Diagonal(i)] += Damp(ud[layout_.Diagonal(i)], lambda);
     b_t_[0] -= gf_;
   }
 
@@ -582,8 +723,13 @@ class Solver {
   bool SolveReduced(double lambda, double* predicted, double* step_norm) {
     df_ = Eigen::VectorXd::Zero(s_.n);
     if (s_.n > 0) {
-      if (!internal::CholeskyInPlace(&s_t_[0], threads_)) return false;
-      df_ = internal::CholeskySolve(s_t_[0], b_t_[0]);
+      if (layout_.sparse()) {
+        if (!cholesky_->Factorize(s_t_[0].data())) return false;
+        df_ = cholesky_->Solve(b_t_[0]);
+      } else {
+        if (!internal::CholeskyInPlace(&s_t_[0], threads_)) return false;
+        df_ = internal::CholeskySolve(s_t_[0], b_t_[0]);
+      }
       if (!df_.allFinite()) return false;
     }
     std::vector<double> part(threads_, 0.0), norm2(threads_, 0.0);
@@ -610,7 +756,7 @@ class Solver {
       n2 += norm2[th];
     }
     for (int i = 0; i < s_.n; ++i) {
-      pred += -gf_(i) * df_(i) + Damp(u_(i, i), lambda) * df_(i) * df_(i);
+      pred += -gf_(i) * df_(i) + Damp(u_.data()[layout_.Diagonal(i)], lambda) * df_(i) * df_(i);
       n2 += df_(i) * df_(i);
     }
     *predicted = 0.5 * pred;
@@ -663,6 +809,8 @@ class Solver {
   const ceres::Solver::Options& options_;
   Structure& s_;
   unsigned threads_;
+  ReducedLayout layout_;
+  std::unique_ptr<internal::SparseCholesky> cholesky_;  // the sparse layout's
   std::vector<int> ranges_;
   std::vector<Eigen::Matrix3d> v_, vinv_;
   std::vector<Eigen::Vector3d> gx_, dx_;
@@ -681,10 +829,12 @@ class Solver {
 }  // namespace
 
 bool SolveSchurLm(const ceres::Solver::Options& options, ceres::Problem* problem, const std::vector<double*>& points,
-                  ceres::Solver::Summary* summary, std::string* why_not) {
+                  ceres::Solver::Summary* summary, std::string* why_not, ReducedStorage storage) {
   Structure s;
   if (!ReadStructure(*problem, points, &s, why_not)) return false;
-  Solver solver(options, &s);
+  const bool sparse = storage == ReducedStorage::kSparse ||
+                      (storage == ReducedStorage::kAuto && s.n > kMaxSchurLmDenseSize);
+  Solver solver(options, &s, sparse);
   solver.Solve(summary);
   return true;
 }

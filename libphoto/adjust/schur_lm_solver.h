@@ -7,7 +7,7 @@
 // their losses), every manifold and held block, the points eliminated by an
 // explicit Schur complement and the reduced system — cameras, intrinsics per
 // camera group, GNSS offsets and drift, readouts, control points — solved by
-// dense Cholesky.
+// Cholesky, dense or sparse by its size.
 //
 // Why not ceres::Solve here: a survey's residuals differ in size (a control
 // prior has three rows, a mark two) and its camera blocks too (rotation,
@@ -38,16 +38,23 @@
 
 namespace aerotri {
 
-// The reduced system's size above which SolveSchurLm declines (a dense
-// n x n system per thread, and its Cholesky).
-constexpr int kMaxSchurLmReducedSize = 4000;
+// The reduced system's size up to which it is held dense (an n x n matrix
+// per thread, factored by the blocked Cholesky of dense_cholesky.h); beyond
+// it only the blocks that share a point or a residual are held, factored by
+// CHOLMOD (sparse_cholesky.h), so that a thousand-photo survey stays here.
+constexpr int kMaxSchurLmDenseSize = 4000;
+
+// How the reduced system is held: dense up to kMaxSchurLmDenseSize columns
+// and sparse beyond (auto), or as asked (tests compare the two).
+enum class ReducedStorage { kAuto, kDense, kSparse };
 
 // Solves `problem` in place (its parameter blocks' values), `points`
 // eliminated, when the solver takes it: every residual holds at most one of
-// `points` (3-vectors without manifold), and the varying blocks that are not
-// points have at most kMaxSchurLmReducedSize tangent parameters. Otherwise
-// false with the reason, the problem untouched.
+// `points` (3-vectors without manifold). Otherwise false with the reason,
+// the problem untouched. summary->linear_solver_type_used says how the
+// reduced system was held: DENSE_SCHUR or SPARSE_SCHUR.
 bool SolveSchurLm(const ceres::Solver::Options& options, ceres::Problem* problem, const std::vector<double*>& points,
-                  ceres::Solver::Summary* summary, std::string* why_not);
+                  ceres::Solver::Summary* summary, std::string* why_not,
+                  ReducedStorage storage = ReducedStorage::kAuto);
 
 }  // namespace aerotri
