@@ -17,7 +17,9 @@
 # Usage: bench/georef_bench.sh [photos ...]   (default: 60 500 1000)
 # Env: BENCH_WORK (default /tmp/aerotri_georef_bench), KEEP=1 keeps the
 # surveys, AEROTRI=path runs another binary, THREADS (default 2), LOO=off
-# leaves leave-one-out out.
+# leaves leave-one-out out, CERES=1 also runs the same adjustment on Ceres'
+# solver (`aerotri adjust --solver ceres`, the reference) and prints its
+# phases and the ratio beside aerotri's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 exe="${AEROTRI:-$(pwd)/build/tools/aerotri}"
@@ -40,13 +42,22 @@ for n in "${sizes[@]}"; do
       --control "$control" --checks "$checks" --tie-points "$points" --quiet >/dev/null
   fi
   [ -f "$bal" ] || /usr/bin/python3 bench/model_to_bal.py "$sim" "$bal" >/dev/null
-  rm -rf "$out"
-  /usr/bin/time -f "%e %M" -o "$work/adjust_$n.time" "$exe" adjust --model "$sim/model" --gps-csv "$sim/gps.csv" \
-    --gcp "$sim/gcp_list.txt" --checkpoints "$sim/checkpoints.txt" --leave-one-out "${LOO:-on}" \
-    --threads "$threads" --quiet -o "$out" >/dev/null || true
+  adjust() {  # solver, output folder, time file
+    rm -rf "$2"
+    /usr/bin/time -f "%e %M" -o "$3" "$exe" adjust --model "$sim/model" --gps-csv "$sim/gps.csv" \
+      --gcp "$sim/gcp_list.txt" --checkpoints "$sim/checkpoints.txt" --leave-one-out "${LOO:-on}" \
+      --threads "$threads" --solver "$1" --quiet -o "$2" >/dev/null || true
+  }
+  adjust auto "$out" "$work/adjust_$n.time"
   /usr/bin/time -f "%e %M" -o "$work/bal_$n.time" "$exe" bal "$bal" --threads "$threads" \
     >"$work/bal_$n.out" 2>/dev/null || true
-  /usr/bin/python3 - "$out/report.json" "$work/adjust_$n.time" "$work/bal_$n.time" "$work/bal_$n.out" <<'PY'
+  ceres_report="" ceres_time=""
+  if [ -n "${CERES:-}" ]; then
+    adjust ceres "$out.ceres" "$work/adjust_$n.ceres.time"
+    ceres_report="$out.ceres/report.json" ceres_time="$work/adjust_$n.ceres.time"
+  fi
+  /usr/bin/python3 - "$out/report.json" "$work/adjust_$n.time" "$work/bal_$n.time" "$work/bal_$n.out" \
+    "$ceres_report" "$ceres_time" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
 a_wall, a_kb = (float(x) for x in open(sys.argv[2]).read().split()[-2:])
@@ -76,6 +87,22 @@ print("  %-34s %9.2f %9s %9.0f" % ("aerotri adjust (whole run)", a_wall, "", a_m
 print("  %-34s %9.2f %9s %9.0f   %s" % ("aerotri bal, same size", b_wall, "", b_kb / 1024,
       " ".join(w for w in bal if w.startswith(("iterations=", "rms_px=")))))
 print("  ratio adjust / bal: %.2f (wall), %.2f (peak memory)" % (a_wall / max(b_wall, 1e-9), a_mb * 1024 / max(b_kb, 1)))
+print("  solver: %s" % adj.get("linear_solver", "?"))
+if sys.argv[5]:
+    c = json.load(open(sys.argv[5]))
+    c_wall, c_kb = (float(x) for x in open(sys.argv[6]).read().split()[-2:])
+    cadj = c["adjustment"]
+    ours = {p["phase"]: p for p in adj.get("phases", [])}
+    print("  Ceres' solver (--solver ceres: %s), the same adjustment:" % cadj.get("linear_solver", "?"))
+    print("  %-34s %9s %9s %9s %9s" % ("phase", "wall_s", "peak_MB", "aerotri_s", "ratio"))
+    for p in cadj.get("phases", []):
+        o = ours.get(p["phase"])
+        print("  %-34s %9.2f %9.0f %9s %9s" % (p["phase"], p["wall_s"], p["peak_rss_mb"],
+              "%.2f" % o["wall_s"] if o else "-", "%.2f" % (o["wall_s"] / p["wall_s"]) if o and p["wall_s"] > 0 else "-"))
+    c_mb = max([c_kb / 1024] + [p["peak_rss_mb"] for p in cadj.get("phases", [])])
+    print("  %-34s %9.2f %9.0f %9.2f %9.2f" % ("whole run", c_wall, c_mb, a_wall, a_wall / max(c_wall, 1e-9)))
+    print("  sigma0 %.6f / %.6f, check RMSE H %.5f / %.5f m (aerotri / Ceres)" % (adj["sigma0"], cadj["sigma0"],
+          r.get("check_points", {}).get("rmse_h_m", float("nan")), c.get("check_points", {}).get("rmse_h_m", float("nan"))))
 PY
-  [ -n "${KEEP:-}" ] || rm -rf "$sim" "$out" "$bal"
+  [ -n "${KEEP:-}" ] || rm -rf "$sim" "$out" "$out.ceres" "$bal"
 done
