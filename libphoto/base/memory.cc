@@ -35,9 +35,12 @@ double StatusFieldMb(const char* name) {
 std::atomic<double> peak_before_reset{0.0};  // the largest mark a reset discarded
 
 std::mutex spans_mutex;
+// Never destroyed: a span held by a static (the pipeline's stage span) is
+// destroyed at exit after any function-local static made later, and must
+// still find the list.
 std::vector<PeakRssSpan*>& OpenSpans() {
-  static std::vector<PeakRssSpan*> spans;
-  return spans;
+  static auto* spans = new std::vector<PeakRssSpan*>();
+  return *spans;
 }
 
 double RusageMaxRssMb() {
