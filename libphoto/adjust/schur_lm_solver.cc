@@ -380,6 +380,17 @@ class Solver {
         it.cumulative_time_in_seconds = Since(start);
         out.iterations.push_back(it);
         if (Callbacks(it, &out)) return Finish(start, cost, &out);
+        // As Ceres checks every step it could evaluate, taken or not: a
+        // trial within the function tolerance of the cost means the cost
+        // cannot move by more (near the optimum such trials differ from it
+        // by rounding alone, and the rejections would only shrink the
+        // region until its minimum).
+        if (evaluated && std::abs(cost - trial) <= options_.function_tolerance * cost) {
+          out.termination_type = ceres::CONVERGENCE;
+          out.message = "Function tolerance reached. |cost_change|/cost: " +
+                        std::to_string(std::abs(cost - trial) / cost) + " (a rejected step)";
+          break;
+        }
         if (region.Radius() < options_.min_trust_region_radius) {
           out.termination_type = ceres::CONVERGENCE;
           out.message =
