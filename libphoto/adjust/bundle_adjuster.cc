@@ -1190,6 +1190,32 @@ void SolveProblem(const BundleOptions& options, const ceres::Solver::Options& so
   ceres::Solve(solver_options, problem, &result->ceres);
 }
 
+// A solve's problem, kept for the precision pass that follows it at the
+// same weights (BundleRun::kept): the pass evaluates the problem the solve
+// left at its optimum instead of building it again (at 513 photos a build
+// is several seconds on one thread: 2.2 million residual blocks through
+// Ceres' maps). The bundle refers to the members, so the whole is held by
+// pointer.
+struct BuiltProblem {
+  BundleOptions options;
+  BundleConfig config;
+  ProblemBlocks blocks;
+  RoundResult counts;  // what the build counted (priors, offsets, drift)
+  Pose pose_a;
+  int round = -1;           // the solve that built it
+  size_t observations = 0;  // the model's then: nothing may have left since
+  std::unique_ptr<CeresBundleProblem> bundle;
+};
+
+// Whether `kept` is the problem a precision pass at `options` in `round`
+// would build: the solve just before, at the same weights and loss, on the
+// same observations.
+bool ServesPass(const BuiltProblem& kept, const BundleOptions& options, int round, const SparseModel& model) {
+  return kept.bundle && kept.round == round - 1 && kept.options.sigma_scale == options.sigma_scale &&
+         kept.options.loss == options.loss && kept.options.loss_scale_px == options.loss_scale_px &&
+         kept.observations == model.observations.size();
+}
+
 // One solve (or, with precision_pass, the posterior precision of the
 // current state; with covariance_pass, the intrinsics' covariance of it):
 // configure, build, solve, write back. gps_offsets (one shared, or one per
@@ -1198,17 +1224,35 @@ void SolveProblem(const BundleOptions& options, const ceres::Solver::Options& so
 // (a warm start, BundleRun::trust_radius) instead of Ceres' default.
 RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int round,
                       std::vector<Eigen::Vector3d>* gps_offsets, std::vector<Eigen::Vector3d>* gps_drift,
-                      bool precision_pass = false, bool covariance_pass = false, double start_radius = 0.0) {
+                      bool precision_pass = false, bool covariance_pass = false, double start_radius = 0.0,
+                      std::unique_ptr<BuiltProblem>* keep = nullptr) {
   const auto setup_start = Clock::now();
-  RoundResult result;
-  const BundleConfig config = ConfigureBundle(*model, options);
+  // The last solve's problem serves the pass right after it; anything else
+  // frees it before building its own (never two problems at once).
+  std::unique_ptr<BuiltProblem> built;
+  if (keep != nullptr) {
+    if (precision_pass && *keep && ServesPass(**keep, options, round, *model)) built = std::move(*keep);
+    keep->reset();
+  }
+  const bool reused = built != nullptr;
+  if (!reused) {
+    built = std::make_unique<BuiltProblem>();
+    built->options = options;
+    built->config = ConfigureBundle(*model, options);
+    built->pose_a = built->config.image_a >= 0 ? model->images[built->config.image_a].pose : Pose();
+    built->blocks = MakeProblemBlocks(*model, built->config, options.estimate_readout);
+    built->round = round;
+    built->observations = model->observations.size();
+  }
+  const BundleConfig& config = built->config;
+  ProblemBlocks& blocks = built->blocks;
+  const Pose& pose_a = built->pose_a;
+  RoundResult result = reused ? built->counts : RoundResult();
   result.num_observations = config.num_observations;
   result.num_points = config.num_points;
   result.skipped_points = config.skipped_points;
   result.num_images = config.num_images;
   result.refined_params = config.refined;
-  const Pose pose_a = config.image_a >= 0 ? model->images[config.image_a].pose : Pose();
-  ProblemBlocks blocks = MakeProblemBlocks(*model, config, options.estimate_readout);
 
   if (!precision_pass && !covariance_pass) {
     std::string why_not;
@@ -1220,13 +1264,23 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     }
   }
 
-  CeresBundleProblem bundle(model, options, config, &blocks, &result);
-  bundle.AddReprojections();
-  bundle.AddGpsPriors(gps_offsets, gps_drift);
-  bundle.AddAttitudePriors();
-  bundle.AddIntrinsicsPriors();
-  bundle.AddControlPriors();
-  bundle.SetManifoldsAndHeldBlocks();
+  if (!reused) {
+    built->bundle = std::make_unique<CeresBundleProblem>(model, built->options, config, &blocks, &built->counts);
+    CeresBundleProblem& b = *built->bundle;
+    b.AddReprojections();
+    b.AddGpsPriors(gps_offsets, gps_drift);
+    b.AddAttitudePriors();
+    b.AddIntrinsicsPriors();
+    b.AddControlPriors();
+    b.SetManifoldsAndHeldBlocks();
+    const RoundResult& c = built->counts;
+    result.num_gps = c.num_gps;
+    result.num_gcp = c.num_gcp;
+    result.num_attitude = c.num_attitude;
+    result.offset_estimated = c.offset_estimated;
+    result.drift_estimated = c.drift_estimated;
+  }
+  CeresBundleProblem& bundle = *built->bundle;
   result.gauge = config.Describe(*model, result.num_gps, result.num_gcp, result.offset_estimated);
   ceres::Problem& problem = bundle.problem();
 
@@ -1281,6 +1335,9 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   }
 
   WriteBack(blocks, config, pose_a, model);
+  // A solve's problem waits for the pass (a pass's own, with the check
+  // points added, is done).
+  if (keep != nullptr && !precision_pass && !covariance_pass && options.compute_precision) *keep = std::move(built);
   return result;
 }
 
@@ -1549,6 +1606,8 @@ struct BundleRun {
   // diagonal) held back the block's weakest directions, which then took
   // five or six more iterations to free at the radius' growth of 3 a step.
   double trust_radius = 0.0;
+  // The last solve's problem, for the precision pass after it.
+  std::unique_ptr<BuiltProblem> kept;
 };
 
 // The GNSS parameters' start: one offset, or one per flight (at least one
@@ -1649,7 +1708,7 @@ RoundResult Solve(BundleRun* run, const BundleOptions& options, const std::strin
                   bool precision_pass = false) {
   const int round = run->solve++;
   RoundResult result = SolveOnce(run->model, options, round, &run->gps_offsets, &run->gps_drift, precision_pass,
-                                 /*covariance_pass=*/false, precision_pass ? 0.0 : run->trust_radius);
+                                 /*covariance_pass=*/false, precision_pass ? 0.0 : run->trust_radius, &run->kept);
   if (!precision_pass) {
     Absorb(run, result, round, kind);
     if (!result.ceres.iterations.empty()) run->trust_radius = result.ceres.iterations.back().trust_region_radius;
@@ -1881,6 +1940,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   StartGnssParameters(&run);
   const BundleOptions estimate = SolveWithOutlierRounds(&run);
   BundleOptions last = options.compute_precision ? PrecisionWithVarianceComponents(&run, estimate) : estimate;
+  run.kept.reset();
   if (options.compute_intrinsics_covariance && !run.intrinsics_covariance_done) {
     last.compute_intrinsics_covariance = true;
     FinalIntrinsicsCovariance(&run, last);
