@@ -1247,7 +1247,7 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   const BundleConfig& config = built->config;
   ProblemBlocks& blocks = built->blocks;
   const Pose& pose_a = built->pose_a;
-  RoundResult result = reused ? built->counts : RoundResult();
+  RoundResult result;
   result.num_observations = config.num_observations;
   result.num_points = config.num_points;
   result.skipped_points = config.skipped_points;
@@ -1273,13 +1273,13 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
     b.AddIntrinsicsPriors();
     b.AddControlPriors();
     b.SetManifoldsAndHeldBlocks();
-    const RoundResult& c = built->counts;
-    result.num_gps = c.num_gps;
-    result.num_gcp = c.num_gcp;
-    result.num_attitude = c.num_attitude;
-    result.offset_estimated = c.offset_estimated;
-    result.drift_estimated = c.drift_estimated;
   }
+  const RoundResult& counts = built->counts;  // the build's, whichever solve made it
+  result.num_gps = counts.num_gps;
+  result.num_gcp = counts.num_gcp;
+  result.num_attitude = counts.num_attitude;
+  result.offset_estimated = counts.offset_estimated;
+  result.drift_estimated = counts.drift_estimated;
   CeresBundleProblem& bundle = *built->bundle;
   result.gauge = config.Describe(*model, result.num_gps, result.num_gcp, result.offset_estimated);
   ceres::Problem& problem = bundle.problem();
@@ -1926,7 +1926,7 @@ BundleSummary AdjustBundle(SparseModel* model, const BundleOptions& options) {
   // computed once at the end (FinalIntrinsicsCovariance).
   BundleOptions solving = options;
   solving.compute_intrinsics_covariance = false;
-  BundleRun run{model, solving, BundleSummary(), {}, {}, 0, options.compute_intrinsics_covariance, false};
+  BundleRun run{model, solving, BundleSummary(), {}, {}, 0, options.compute_intrinsics_covariance, false, 0.0, nullptr};
   BundleSummary& summary = run.summary;
   if (options.compute_diagnostics) summary.num_behind_camera_initial = CountBehindCamera(*model);
   summary.initial_rms_px = RmsOfAdjusted(*model, ReprojectionErrors(*model));
