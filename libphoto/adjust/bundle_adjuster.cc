@@ -24,6 +24,7 @@
 #include "libphoto/adjust/position_prior_cost.h"
 #include "libphoto/adjust/reprojection_cost.h"
 #include "libphoto/base/error.h"
+#include "libphoto/base/memory.h"
 #include "libphoto/geometry/triangulation.h"
 
 namespace aerotri {
@@ -1337,7 +1338,13 @@ RoundResult SolveOnce(SparseModel* model, const BundleOptions& options, int roun
   WriteBack(blocks, config, pose_a, model);
   // A solve's problem waits for the pass (a pass's own, with the check
   // points added, is done).
-  if (keep != nullptr && !precision_pass && !covariance_pass && options.compute_precision) *keep = std::move(built);
+  if (keep != nullptr && !precision_pass && !covariance_pass && options.compute_precision) {
+    *keep = std::move(built);
+    // The engine's per-iteration Jacobians, freed in many mid-sized blocks,
+    // back to the kernel: no rebuild reuses them now before the pass's own
+    // large arrays.
+    ReleaseFreedMemory();
+  }
   return result;
 }
 
